@@ -1,0 +1,46 @@
+# im2vec developer targets. `make install` once, then `make demo` / `make test`.
+PY ?= .venv/bin/python
+PIP ?= .venv/bin/pip
+TORCH_PIN ?= torch==2.13.0
+
+.PHONY: install test test-slow lint bench demo data-fonts data-mnist data-emoji data-icons clean
+
+install: .venv/.installed
+
+.venv/.installed: pyproject.toml
+	test -x $(PY) || python3 -m venv .venv
+	# The CPU build of torch first: a bare `torch` requirement would pull a multi-GB CUDA build.
+	$(PIP) install -q $(TORCH_PIN)
+	$(PIP) install -q -e '.[dev]'
+	touch $@
+
+test: install
+	$(PY) -m pytest -q
+
+test-slow: install
+	$(PY) -m pytest -q -m slow
+
+lint: install
+	$(PY) -m ruff check src tests bench
+
+bench: install
+	$(PY) bench/raster.py
+	@if [ -f bench/train.py ]; then $(PY) bench/train.py; fi
+
+demo: install
+	@mkdir -p out/demo
+	@if [ -d models/fonts ]; then \
+	  .venv/bin/im2vec vectorize examples/*.png -o out/demo && echo "SVGs written to out/demo/"; \
+	else \
+	  $(PY) examples/make_example_svg.py out/demo/example.svg && \
+	  .venv/bin/im2vec render out/demo/example.svg -o out/demo/example.png --scale 2 && \
+	  echo "rendered out/demo/example.svg -> out/demo/example.png with im2vec's rasterizer"; \
+	fi
+
+DATA ?= data
+data-fonts: install
+	apt-get update -q && apt-get install -y -q $$(cat ../shared/data/font-packages.txt)
+	.venv/bin/im2vec data fonts $(DATA)/fonts
+
+clean:
+	rm -rf out .pytest_cache .ruff_cache
