@@ -94,5 +94,369 @@ def render(svg_file, output, scale, tau):
     _write_output(output, png)
 
 
+def _device_option(f):
+    return click.option("--device", default="auto", show_default=True, help="auto, cpu, cuda[:N] or mps.")(f)
+
+
+@cli.command(epilog=EXIT_HELP)
+@click.argument("data_dir", type=click.Path(file_okay=False))
+@click.option("--out", "run_dir", default="runs/latest", show_default=True, help="Run directory.")
+@click.option("--val", "val_dir", default=None, help="Validation folder (default: DATA_DIR/val, or a split).")
+@click.option("--config", "config_file", default=None, type=click.Path(dir_okay=False),
+              help="JSON with 'model' and/or 'train' sections (options below override it).")
+@click.option("--size", type=click.IntRange(8), help="Image size (power of two). [64]")
+@click.option("--paths", type=click.IntRange(1), help="Paths per image. [4]")
+@click.option("--latent", type=click.IntRange(1), help="Latent size. [128]")
+@click.option("--grouping", type=click.Choice(["evenodd", "layers"]),
+              help="evenodd: one shape of all paths (glyphs, digits); layers: one coloured layer per path. [evenodd]")
+@click.option("--batch", type=click.IntRange(1), help="Batch size. [64]")
+@click.option("--steps", type=click.IntRange(1), help="Optimiser steps. [5000]")
+@click.option("--epochs", type=click.FloatRange(0, min_open=True), help="Instead of --steps: passes over the data.")
+@click.option("--lr", type=click.FloatRange(0, min_open=True), help="Peak learning rate. [5e-4]")
+@click.option("--beta", type=click.FloatRange(0), help="KL weight. [1e-5]")
+@click.option("--seed", type=int, help="Random seed. [0]")
+@click.option("--workers", type=click.IntRange(1), help="Image loading threads. [2]")
+@click.option("--resume", is_flag=True, help="Continue exactly from RUN/checkpoint.pt.")
+@_device_option
+def train(data_dir, run_dir, val_dir, config_file, size, paths, latent, grouping, batch, steps, epochs, lr, beta,
+          seed, workers, resume, device):
+    """Train an Im2Vec model on a folder of images (PNG/JPG, searched recursively).
+
+    A folder made by `im2vec data` (with train/ and val/) uses its own split. Unreadable
+    images are skipped with a warning. Ctrl-C saves a checkpoint; --resume continues.
+    The exported model is RUN/model (use it with --model RUN/model).
+    """
+    import json
+
+    from .config import ModelConfig, TrainConfig
+    from .runtime import progress, resolve_device
+    from .train import train as run_train
+
+    sections = {}
+    if config_file:
+        try:
+            sections = json.loads(open(config_file).read())
+        except (OSError, json.JSONDecodeError) as exc:
+            raise Im2VecError(f"{config_file}: cannot read config ({exc})") from None
+    m = dict(sections.get("model", {}))
+    t = dict(sections.get("train", {}))
+    for key, val in (("image_size", size), ("paths", paths), ("latent", latent), ("grouping", grouping)):
+        if val is not None:
+            m[key] = val
+    for key, val in (("batch", batch), ("steps", steps), ("lr", lr), ("beta", beta), ("seed", seed),
+                     ("workers", workers)):
+        if val is not None:
+            t[key] = val
+    model_cfg, train_cfg = ModelConfig.from_dict(m), TrainConfig.from_dict(t)
+    dev = resolve_device(device)
+    bar = {}
+
+    def on_event(e):
+        kind = e.get("event")
+        if kind == "skip":
+            click.echo(f"Warning: skipped {e['message']}", err=True)
+        elif kind == "data":
+            click.echo(f"training on {e['train']} images, validating on {e['val']} ({dev})", err=True)
+            bar["b"] = progress(total=e["steps"], desc="train", unit="step")
+        elif kind == "resume":
+            bar["b"].update(e["step"])
+        elif kind == "train":
+            bar["b"].set_postfix(loss=f"{e['loss']:.4f}", img_s=f"{e['img_per_s']:.0f}", k=e["k"])
+            bar["b"].update(e["step"] - bar["b"].n)
+            if bar["b"].disable:
+                click.echo(f"step {e['step']} loss {e['loss']:.5f} img/s {e['img_per_s']:.0f}", err=True)
+        elif kind == "val":
+            click.echo(f"step {e['step']}: val pyramid L2 {e['val_pyramid_l2']:.5f}, MSE {e['val_mse']:.5f}", err=True)
+
+    out = run_train(data_dir, run_dir, model_cfg, train_cfg, device=dev, val_dir=val_dir, resume=resume,
+                    on_event=on_event, epochs=epochs)
+    if "b" in bar:
+        bar["b"].close()
+    import os
+
+    if os.environ.get("RANK", "0") == "0":
+        click.echo(f"model written to {out}", err=True)
+
+
+def _model_options(f):
+    f = click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")(f)
+    f = _device_option(f)
+    f = click.option("--model", "model_name", default="fonts", show_default=True,
+                     help="Shipped model name (see models/) or a directory written by `train`.")(f)
+    return f
+
+
+def _load_model(name, device, seed):
+    from .checkpoint import from_pretrained
+    from .runtime import resolve_device, seed_everything
+
+    seed_everything(seed)
+    return from_pretrained(name, resolve_device(device))
+
+
+def _expand_inputs(inputs):
+    """Files and folders (searched recursively for PNG/JPG) -> list of (path, is_from_folder)."""
+    from pathlib import Path
+
+    from .data.folder import list_images
+
+    out = []
+    for item in inputs:
+        p = Path(item)
+        if item != "-" and p.is_dir():
+            from .errors import DataError
+
+            try:
+                out += [(str(f), p) for f in list_images(p)]
+            except DataError as exc:
+                raise Im2VecError(str(exc)) from None
+        else:
+            out.append((item, None))
+    return out
+
+
+def _output_for(item, root, output, suffix, single):
+    """Where the result of one input goes: the file/stdout itself for a single input, else OUT/<name>."""
+    from pathlib import Path
+
+    if single:
+        if output != "-" and Path(output).is_dir():
+            return str(Path(output) / ((Path(item).stem if item != "-" else "stdin") + suffix))
+        return output
+    base = Path(output)
+    if root is not None:
+        rel = Path(item).relative_to(root).with_suffix(suffix)
+        dest = base / rel
+    else:
+        dest = base / (Path(item).stem + suffix)
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    return str(dest)
+
+
+def _batch(ctx, items, work):
+    """Run ``work(item, root)`` for each input; report bad files and exit 1 at the end."""
+    from .runtime import progress
+
+    failed = 0
+    bar = progress(items, desc="files", unit="file", disable=None if len(items) > 1 else True)
+    for item, root in bar:
+        try:
+            work(item, root)
+        except Im2VecError as exc:
+            failed += 1
+            click.echo(f"Error: {exc}", err=True)
+    if failed:
+        if len(items) > 1:
+            click.echo(f"Error: {failed} of {len(items)} inputs failed", err=True)
+        ctx.exit(1)
+
+
+def _load_input_image(item):
+    from .io import load_image
+
+    if item == "-":
+        return load_image("<stdin>", sys.stdin.buffer.read())
+    return load_image(item)
+
+
+@cli.command(epilog=EXIT_HELP)
+@click.argument("inputs", nargs=-1, required=True, metavar="IMG...")
+@click.option("-o", "--output", default="-", show_default=True,
+              help="SVG file or - for one input; a folder for several inputs or a folder input.")
+@click.option("--segments", default=None, help="Cubic segments per path (default: the model's).")
+@click.option("--paths", "max_paths", type=click.IntRange(1), default=None, help="Keep at most N paths (the largest).")
+@_model_options
+@click.pass_context
+def vectorize(ctx, inputs, output, segments, max_paths, model_name, device, seed):
+    """Vectorize images (PNG/JPG, any size) into SVGs of closed cubic paths.
+
+    The SVG's viewBox is the input's pixel grid, so it overlays the input exactly.
+    `-` reads one image from stdin; with -o - the SVG goes to stdout.
+    """
+    from .infer import vectorize as run
+    from .io import atomic_write
+    from .svg import to_svg
+
+    k = _segments(segments)
+    items = _expand_inputs(inputs)
+    single = len(items) == 1 and items[0][1] is None
+    if not single and output == "-":
+        raise click.UsageError("several inputs need -o DIR")
+    model = _load_model(model_name, device, seed)
+
+    def work(item, root):
+        img = _load_input_image(item)
+        svg = to_svg(run(model, [img], segments=k, max_paths=max_paths)[0])
+        dest = _output_for(item, root, output, ".svg", single)
+        _write_text(dest, svg, atomic_write)
+
+    _batch(ctx, items, work)
+
+
+def _segments(value):
+    if value is None:
+        return None
+    if value == "auto":
+        raise click.BadParameter("'auto' needs the segment-count network, which this version does not ship yet",
+                                 param_hint="--segments")
+    try:
+        k = int(value)
+    except ValueError:
+        raise click.BadParameter(f"{value!r} is not a whole number", param_hint="--segments") from None
+    if not 1 <= k <= 200:
+        raise click.BadParameter("must be between 1 and 200", param_hint="--segments")
+    return k
+
+
+def _write_text(dest, text, atomic_write):
+    if dest == "-":
+        sys.stdout.write(text)
+        sys.stdout.flush()
+    else:
+        try:
+            atomic_write(dest, text)
+        except OSError as exc:
+            raise Im2VecError(f"{dest}: cannot write ({exc.strerror or exc})") from None
+
+
+@cli.command(epilog=EXIT_HELP)
+@click.argument("inputs", nargs=-1, required=True, metavar="IMG...")
+@click.option("-o", "--output", default="-", show_default=True, help="JSON lines file or -; a folder with --format npy.")
+@click.option("--format", "fmt", type=click.Choice(["jsonl", "npy"]), default="jsonl", show_default=True)
+@_model_options
+@click.pass_context
+def encode(ctx, inputs, output, fmt, model_name, device, seed):
+    """Encode images to latent vectors (the posterior mean): one JSON line per image, or .npy files."""
+    import io as _io
+    import json
+
+    import numpy as np
+
+    from .infer import encode as run
+    from .io import atomic_write
+
+    items = _expand_inputs(inputs)
+    if fmt == "npy" and output == "-":
+        raise click.UsageError("--format npy needs -o DIR")
+    model = _load_model(model_name, device, seed)
+    lines = []
+
+    def work(item, root):
+        z = run(model, [_load_input_image(item)])[0]
+        if fmt == "npy":
+            from pathlib import Path
+
+            Path(output).mkdir(parents=True, exist_ok=True)
+            dest = _output_for(item if item != "-" else "stdin.png", root, output, ".npy", False)
+            buf = _io.BytesIO()
+            np.save(buf, z.numpy().astype(np.float32))
+            atomic_write(dest, buf.getvalue())
+        else:
+            lines.append(json.dumps({"file": item, "model": getattr(model, "name", model_name),
+                                     "latent": [round(v, 6) for v in z.tolist()]}))
+
+    try:
+        _batch(ctx, items, work)
+    finally:
+        if fmt == "jsonl" and lines:
+            _write_text(output, "\n".join(lines) + "\n", atomic_write)
+
+
+@cli.command(epilog=EXIT_HELP)
+@click.option("--n", "count", type=click.IntRange(1, 10000), default=16, show_default=True, help="How many samples.")
+@click.option("-o", "--output", default="samples", show_default=True, help="Output folder.")
+@click.option("--segments", default=None, help="Cubic segments per path (default: the model's).")
+@click.option("--temperature", type=click.FloatRange(0), default=1.0, show_default=True, help="Prior std scale.")
+@_model_options
+def sample(count, output, segments, temperature, model_name, device, seed):
+    """Decode N latents drawn from the prior (seeded) into SVGs, plus contact.png."""
+    import torch
+
+    from .infer import contact_sheet, decode
+    from .io import atomic_write
+    from .svg import to_svg
+
+    model = _load_model(model_name, device, seed)
+    g = torch.Generator().manual_seed(seed)
+    z = torch.randn(count, model.config.latent, generator=g) * temperature
+    images = decode(model, z, segments=_segments(segments))
+    _write_set(output, "sample", images, atomic_write, to_svg, contact_sheet)
+
+
+def _write_set(output, stem, images, atomic_write, to_svg, contact_sheet):
+    from pathlib import Path
+
+    out = Path(output)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise Im2VecError(f"{out}: cannot create folder ({exc.strerror or exc})") from None
+    width = len(str(len(images) - 1))
+    for i, im in enumerate(images):
+        atomic_write(out / f"{stem}_{i:0{width}d}.svg", to_svg(im))
+    atomic_write(out / "contact.png", contact_sheet(images))
+    click.echo(f"wrote {len(images)} SVGs and contact.png to {out}/", err=True)
+
+
+def _latent_from(model, item):
+    """An image file, or a latent from `encode` (.npy, or a .json/.jsonl line)."""
+    import json
+
+    import numpy as np
+    import torch
+
+    from .infer import encode as run
+
+    low = item.lower()
+    if low.endswith(".npy"):
+        try:
+            z = torch.from_numpy(np.load(item, allow_pickle=False)).float().view(-1)
+        except (OSError, ValueError) as exc:
+            raise Im2VecError(f"{item}: not a readable .npy latent ({exc})") from None
+    elif low.endswith((".json", ".jsonl")):
+        try:
+            z = torch.tensor(json.loads(open(item).readline())["latent"], dtype=torch.float32)
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise Im2VecError(f"{item}: not a latent JSON line from `im2vec encode` ({exc})") from None
+    else:
+        return run(model, [_load_input_image(item)])[0]
+    if z.numel() != model.config.latent:
+        raise Im2VecError(f"{item}: latent has {z.numel()} values, the model expects {model.config.latent}")
+    if not torch.isfinite(z).all():
+        raise Im2VecError(f"{item}: latent contains NaN or infinite values")
+    return z
+
+
+@cli.command(epilog=EXIT_HELP)
+@click.argument("a")
+@click.argument("b")
+@click.option("--steps", type=click.IntRange(0, 1000), default=4, show_default=True, help="In-between frames.")
+@click.option("-o", "--output", default="interpolation", show_default=True, help="Output folder.")
+@click.option("--segments", default=None, help="Cubic segments per path (default: the model's).")
+@click.option("--animate", is_flag=True, help="Also write morph.svg, an SMIL animation from A to B.")
+@_model_options
+def interpolate(a, b, steps, output, segments, animate, model_name, device, seed):
+    """Decode a linear interpolation between A and B (images, or latents from `encode`).
+
+    Writes frame_*.svg (endpoints included) and contact.png to the output folder.
+    """
+    from pathlib import Path
+
+    from .infer import animated_svg, contact_sheet, decode, lerp_latents
+    from .io import atomic_write
+    from .svg import to_svg
+
+    model = _load_model(model_name, device, seed)
+    za, zb = _latent_from(model, a), _latent_from(model, b)
+    k = _segments(segments)
+    z = lerp_latents(za, zb, steps)
+    frames = decode(model, z, segments=k)
+    _write_set(output, "frame", frames, atomic_write, to_svg, contact_sheet)
+    if animate:
+        full = decode(model, z, segments=k, keep_all=True)
+        atomic_write(Path(output) / "morph.svg", animated_svg(full))
+        click.echo(f"wrote {Path(output) / 'morph.svg'}", err=True)
+
+
 def main():
     cli(prog_name="im2vec")

@@ -1,0 +1,73 @@
+"""Training-step benchmark (issue "The Im2Vec model"): images/s at B=64, 64^2, P=4, k=16.
+
+Prints compile time apart from steady state, and a per-phase breakdown of one step.
+Run: ``python bench/train.py`` (``make bench``).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+
+import torch
+
+sys.path.insert(0, os.path.dirname(__file__))
+
+from im2vec_cli.config import ModelConfig, TrainConfig  # noqa: E402
+from im2vec_cli.model.vae import Im2Vec, kl_divergence  # noqa: E402
+from im2vec_cli.raster import gaussian_pyramid, pyramid_l2, render_pyramid  # noqa: E402
+from im2vec_cli.train import Lookahead  # noqa: E402
+
+B, K = 64, 16
+
+
+def main():
+    cfg = ModelConfig(palette="#000000")
+    tcfg = TrainConfig()
+    torch.manual_seed(0)
+    model = Im2Vec(cfg)
+    opt = Lookahead(torch.optim.RAdam(model.parameters(), lr=tcfg.lr), tcfg.lookahead_k, tcfg.lookahead_alpha)
+    x = (torch.rand(B, 3, 64, 64) > 0.7).float()
+    target = gaussian_pyramid(x, cfg.levels)
+    times: dict[str, float] = {}
+
+    def step(record: bool):
+        t = [time.perf_counter()]
+        mu, logvar = model.encode(x)
+        z = mu + torch.randn_like(mu) * (0.5 * logvar).exp()
+        t.append(time.perf_counter())
+        dec = model.decode(z, K)
+        t.append(time.perf_counter())
+        renders = render_pyramid(dec.points, dec.colors, dec.depth, size=64, levels=cfg.levels, tau=0.5,
+                                 fill_rule=dec.fill_rule, shape_index=dec.shape_index, samples=cfg.samples,
+                                 composite="soft")
+        loss = pyramid_l2(renders, target) + 1e-5 * kl_divergence(mu, logvar)
+        t.append(time.perf_counter())
+        opt.zero_grad()
+        loss.backward()
+        t.append(time.perf_counter())
+        torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
+        opt.step()
+        t.append(time.perf_counter())
+        if record:
+            for name, a, b in zip(("encoder", "decoder", "render+loss", "backward", "optimiser"), t, t[1:]):
+                times[name] = times.get(name, 0.0) + (b - a)
+        return t[-1] - t[0]
+
+    first = step(False)
+    for _ in range(2):
+        step(False)
+    n = 10
+    total = sum(step(True) for _ in range(n))
+    print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, compile={os.environ.get('IM2VEC_COMPILE', '1')}")
+    print(f"workload: B={B}, 64^2, P={cfg.paths}, k={K}, pyramid levels={cfg.levels}, "
+          f"decoder {cfg.dec_width}x{cfg.dec_layers}, deform={cfg.deform}")
+    print(f"first step (includes torch.compile): {first:.1f} s")
+    print(f"steady state: {total / n * 1e3:.0f} ms/step, {B * n / total:.0f} images/s")
+    for name, v in times.items():
+        print(f"  {name:<12}{v / n * 1e3:8.1f} ms  {100 * v / total:5.1f}%")
+
+
+if __name__ == "__main__":
+    main()

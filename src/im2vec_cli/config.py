@@ -1,0 +1,113 @@
+"""Configuration dataclasses: ``ModelConfig`` (architecture) and ``TrainConfig`` (optimisation).
+
+Both are frozen; ``from_dict`` rejects unknown keys and wrong types.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, get_type_hints
+
+from .errors import Im2VecError
+
+FORMAT_VERSION = 1
+
+
+class _Config:
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]):
+        if not isinstance(data, dict):
+            raise Im2VecError(f"{cls.__name__}: expected a mapping, got {type(data).__name__}")
+        data = {k: v for k, v in data.items() if k not in ("class_name", "format_version")}
+        hints = get_type_hints(cls)
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - names)
+        if unknown:
+            raise Im2VecError(f"{cls.__name__}: unknown keys {unknown}")
+        for key, value in data.items():
+            want = hints[key]
+            ok = {
+                int: isinstance(value, int) and not isinstance(value, bool),
+                float: isinstance(value, (int, float)) and not isinstance(value, bool),
+                bool: isinstance(value, bool),
+                str: isinstance(value, str),
+            }.get(want, True)
+            if want == "int | None" or str(want) == "int | None":
+                ok = value is None or isinstance(value, int)
+            if not ok:
+                raise Im2VecError(f"{cls.__name__}.{key}: expected {getattr(want, '__name__', want)}, got {value!r}")
+            if want is float:
+                data[key] = float(value)
+        return cls(**data)
+
+    def to_dict(self) -> dict[str, Any]:
+        d = dataclasses.asdict(self)
+        d["class_name"] = type(self).__name__
+        d["format_version"] = FORMAT_VERSION
+        return d
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=2, sort_keys=True) + "\n"
+
+    @classmethod
+    def load(cls, path: str | Path):
+        try:
+            data = json.loads(Path(path).read_text())
+        except FileNotFoundError:
+            raise Im2VecError(f"{path}: no such file") from None
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise Im2VecError(f"{path}: not valid JSON ({exc})") from None
+        if data.get("format_version", FORMAT_VERSION) != FORMAT_VERSION:
+            raise Im2VecError(f"{path}: config format version {data.get('format_version')} is not {FORMAT_VERSION}")
+        return cls.from_dict(data)
+
+
+@dataclass(frozen=True)
+class ModelConfig(_Config):
+    """Architecture of the Im2Vec VAE (paper sec. 3)."""
+
+    image_size: int = 64
+    channels: int = 3
+    latent: int = 128
+    paths: int = 4
+    enc_width: int = 32  # first conv width; doubles per stride-2 stage, capped at 8x
+    lstm_hidden: int = 128
+    code: int = 64  # per-path code
+    dec_width: int = 128  # path decoder channels (authors: 264)
+    dec_layers: int = 4  # path decoder conv layers (authors: 6)
+    deform: bool = True  # sample deformation subnetwork (sec. 3.1.2)
+    deform_width: int = 64
+    grouping: str = "evenodd"  # "evenodd": all paths one shape (fonts, digits); "layers": one shape per path
+    palette: str = ""  # fixed colours "#rrggbb,#rrggbb,..." (empty: learned colours)
+    segments: int = 12  # default k at inference
+    min_segments: int = 7  # training range of k (sec. 3.5)
+    max_segments: int = 25
+    samples: int = 4  # lines per cubic when rasterising
+    levels: int = 3  # Gaussian pyramid levels of the loss (eq. 1)
+
+
+@dataclass(frozen=True)
+class TrainConfig(_Config):
+    """Optimisation settings of ``im2vec train``."""
+
+    steps: int = 5000
+    batch: int = 64
+    lr: float = 5e-4
+    beta: float = 1e-5  # KL weight (on the sum over latent dims)
+    beta_warmup: int = 2000  # steps of linear KL warm-up
+    grad_clip: float = 1.0
+    lookahead_k: int = 6
+    lookahead_alpha: float = 0.5
+    tau_start: float = 1.0  # edge softness (pixels), annealed linearly...
+    tau_end: float = 0.4  # ...to this value at the last step
+    lr_final: float = 0.1  # cosine decay to lr * lr_final
+    seed: int = 0
+    val_fraction: float = 0.05
+    val_every: int = 250
+    ckpt_every: int = 250
+    preview_every: int = 500
+    workers: int = 2
+    log_every: int = 25

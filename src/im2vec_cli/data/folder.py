@@ -1,0 +1,85 @@
+"""Image folders for training: every PNG/JPG under a root, loaded into memory.
+
+Images are composited onto white, converted to RGB and fitted to ``size x size``
+(padded with white to a square, then resized), stored as uint8 ``(N, 3, S, S)``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import torch
+
+from ..errors import DataError, InputError
+from ..io import load_image
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
+
+
+def list_images(root: str | Path) -> list[Path]:
+    root = Path(root)
+    if not root.is_dir():
+        raise DataError(f"{root}: not a directory")
+    return sorted(p for p in root.rglob("*") if p.suffix.lower() in IMAGE_SUFFIXES and p.is_file())
+
+
+def fit_square(img: torch.Tensor, size: int) -> torch.Tensor:
+    """``(3, H, W)`` -> ``(3, size, size)``: pad with white to a centred square, then resize."""
+    import torch.nn.functional as F
+
+    _, h, w = img.shape
+    s = max(h, w)
+    if h != w:
+        top, left = (s - h) // 2, (s - w) // 2
+        img = F.pad(img, (left, s - w - left, top, s - h - top), value=1.0)
+    if s != size:
+        img = F.interpolate(img[None], size=(size, size), mode="area" if s > size else "bilinear",
+                            align_corners=None if s > size else False)[0]
+    return img.clamp(0, 1)
+
+
+def load_folder(
+    root: str | Path, size: int, *, workers: int = 2, on_skip: Callable[[str], None] | None = None
+) -> tuple[torch.Tensor, list[str]]:
+    """Load every image under ``root``.
+
+    Unreadable files are skipped and reported through ``on_skip`` (one line each).
+
+    Returns:
+        ``(N, 3, size, size)`` uint8 and the relative file names.
+    """
+    files = list_images(root)
+    if not files:
+        raise DataError(f"{root}: no images (.png, .jpg) found")
+
+    def one(p):
+        try:
+            return fit_square(load_image(p), size)
+        except InputError as exc:
+            if on_skip:
+                on_skip(str(exc))
+            return None
+
+    with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
+        imgs = list(pool.map(one, files))
+    keep = [(f, i) for f, i in zip(files, imgs) if i is not None]
+    if not keep:
+        raise DataError(f"{root}: none of the {len(files)} image files could be read")
+    data = torch.stack([(i * 255).round().to(torch.uint8) for _, i in keep])
+    return data, [str(f.relative_to(root)) for f, _ in keep]
+
+
+def split_indices(names: list[str], val_fraction: float) -> tuple[list[int], list[int]]:
+    """Deterministic train/val split by a hash of each file's folder (so one font family or
+    class folder stays on one side); single-folder sets are split by file name."""
+    keys = [str(Path(n).parent) for n in names]
+    if len(set(keys)) < 10:
+        keys = names
+    val = [i for i, k in enumerate(keys) if int(hashlib.sha256(k.encode()).hexdigest()[:8], 16) / 0xFFFFFFFF < val_fraction]
+    if not val and len(names) > 1:
+        val = [len(names) - 1]
+    vs = set(val)
+    return [i for i in range(len(names)) if i not in vs], val

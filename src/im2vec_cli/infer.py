@@ -1,0 +1,151 @@
+"""Inference: vectorize, encode, decode, sample and interpolate with a trained model.
+
+Frames: the model sees a ``S x S`` square (``S = config.image_size``) made from the input by
+centring it on a white square of side ``max(H, W)`` and resizing. ``Placement`` maps the
+model's normalised frame back to the *input's* pixel frame, so an SVG overlays its input.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from .data.folder import fit_square
+from .model.vae import Decoded, Im2Vec
+from .svg import VectorImage, contour_d, from_tensors, rasterize_svg, to_svg
+
+MIN_AREA = 1e-4  # paths below this area (normalised units) are unused and not exported
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Input ``width x height``; the model square of side ``max(H, W)`` sits at ``(-left, -top)``."""
+
+    width: int
+    height: int
+
+    @property
+    def side(self) -> int:
+        return max(self.width, self.height)
+
+    @property
+    def offset(self) -> tuple[float, float]:
+        return (self.side - self.width) // 2, (self.side - self.height) // 2
+
+
+def model_input(model: Im2Vec, image: torch.Tensor) -> tuple[torch.Tensor, Placement]:
+    """``(3, H, W)`` in [0, 1] -> model input ``(3, S, S)`` and its placement."""
+    if image.dim() != 3 or image.shape[0] != 3:
+        raise ValueError(f"image must be (3, H, W), got {tuple(image.shape)}")
+    _, h, w = image.shape
+    return fit_square(image, model.config.image_size), Placement(w, h)
+
+
+def to_vector(dec: Decoded, i: int, place: Placement, *, max_paths: int | None = None, keep_all: bool = False) -> VectorImage:
+    """Decoded item ``i`` -> ``VectorImage`` in the input's pixel frame.
+
+    Degenerate (unused) paths are dropped unless ``keep_all``; ``max_paths`` keeps the largest.
+    """
+    pts = dec.points[i].detach().double().cpu()  # (P, 3k, 2) normalised (model square)
+    side = place.side
+    left, top = place.offset
+    px = pts * side - torch.tensor([left, top], dtype=torch.float64)  # input pixel frame
+    area = Im2Vec.path_areas(pts)  # (P,)
+    keep = torch.ones(len(pts), dtype=torch.bool) if keep_all else area >= MIN_AREA
+    if max_paths is not None and int(keep.sum()) > max_paths:
+        order = torch.argsort(torch.where(keep, area, torch.full_like(area, -1.0)), descending=True)
+        keep = torch.zeros_like(keep)
+        keep[order[:max_paths]] = True
+    sidx = None if dec.shape_index is None else dec.shape_index.cpu()[keep]
+    norm = px[keep] / torch.tensor([place.width, place.height], dtype=torch.float64)
+    cols = dec.colors[i].detach().cpu()
+    depth = dec.depth[i].detach().cpu()
+    if sidx is None:
+        cols, depth = cols[keep], depth[keep]
+    return from_tensors(norm, cols, size=(place.height, place.width), shape_index=sidx, depth=depth,
+                        fill_rule=dec.fill_rule)
+
+
+@torch.no_grad()
+def vectorize(model: Im2Vec, images: list[torch.Tensor], *, segments: int | None = None,
+              max_paths: int | None = None) -> list[VectorImage]:
+    """Amortised vectorisation (``z = mu``) of images ``(3, H_i, W_i)``."""
+    dev = next(model.parameters()).device
+    xs, places = zip(*(model_input(model, im) for im in images))
+    mu, _ = model.encode(torch.stack(xs).to(dev))
+    dec = model.decode(mu, segments)
+    return [to_vector(dec, i, p, max_paths=max_paths) for i, p in enumerate(places)]
+
+
+@torch.no_grad()
+def encode(model: Im2Vec, images: list[torch.Tensor]) -> torch.Tensor:
+    """Posterior means ``(N, D)`` of images ``(3, H_i, W_i)``."""
+    dev = next(model.parameters()).device
+    xs = torch.stack([model_input(model, im)[0] for im in images]).to(dev)
+    return model.encode(xs)[0].cpu()
+
+
+@torch.no_grad()
+def decode(model: Im2Vec, z: torch.Tensor, *, segments: int | None = None, keep_all: bool = False) -> list[VectorImage]:
+    """Latents ``(N, D)`` -> vector images on the model's square canvas."""
+    if z.dim() != 2 or z.shape[1] != model.config.latent:
+        raise ValueError(f"z must be (N, {model.config.latent}), got {tuple(z.shape)}")
+    if not torch.isfinite(z).all():
+        raise ValueError("z contains NaN or infinite values")
+    dev = next(model.parameters()).device
+    dec = model.decode(z.to(dev).float(), segments)
+    s = model.config.image_size
+    return [to_vector(dec, i, Placement(s, s), keep_all=keep_all) for i in range(len(z))]
+
+
+def lerp_latents(za: torch.Tensor, zb: torch.Tensor, steps: int) -> torch.Tensor:
+    """Endpoints and ``steps`` evenly spaced latents between them: ``(steps + 2, D)``."""
+    t = torch.linspace(0, 1, steps + 2, dtype=za.dtype).view(-1, 1)
+    return za.view(1, -1) * (1 - t) + zb.view(1, -1) * t
+
+
+def animated_svg(frames: list[VectorImage], seconds: float = 3.0, decimals: int = 2) -> str:
+    """One SVG whose paths morph through ``frames`` with SMIL ``<animate>`` (there and back).
+
+    All frames must have the same shapes, contours and segment counts (decode with
+    ``keep_all=True`` and a fixed number of segments), so the path data interpolates.
+    """
+    first = frames[0]
+    sig = [[len(c) for c in s.contours] for s in first.shapes]
+    for f in frames:
+        if [[len(c) for c in s.contours] for s in f.shapes] != sig:
+            raise ValueError("frames differ in structure; decode them with keep_all=True and fixed segments")
+    seq = frames + frames[-2:0:-1]  # ping-pong
+    base = to_svg(first, decimals)
+    out = base[: base.rfind("</svg>")]
+    out = out[: out.find("<path")] if "<path" in out else out
+    parts = [out]
+    for si, shape in enumerate(first.shapes):
+        values = ";".join(" ".join(contour_d(c, decimals) for c in f.shapes[si].contours) for f in seq + [seq[0]])
+        r, g, b = (int(round(v * 255)) for v in shape.color)
+        parts.append(
+            f'<path d="{values.split(";")[0]}" fill="#{r:02x}{g:02x}{b:02x}" fill-rule="{shape.fill_rule}" stroke="none">'
+            f'<animate attributeName="d" dur="{seconds * 2:g}s" repeatCount="indefinite" values="{values}"/></path>'
+        )
+    parts.append("</svg>")
+    return "".join(parts)
+
+
+def contact_sheet(images: list[VectorImage], cell: int = 96, columns: int = 8) -> bytes:
+    """PNG grid of cairosvg renders of the vector images."""
+    from PIL import Image
+
+    cols = min(columns, len(images))
+    rows = math.ceil(len(images) / cols)
+    sheet = Image.new("RGB", (cols * cell, rows * cell), "white")
+    for i, im in enumerate(images):
+        arr = rasterize_svg(to_svg(im, 3), cell, cell)
+        tile = Image.fromarray(np.round(arr * 255).astype(np.uint8))
+        sheet.paste(tile, ((i % cols) * cell, (i // cols) * cell))
+    buf = io.BytesIO()
+    sheet.save(buf, format="PNG")
+    return buf.getvalue()

@@ -1,0 +1,116 @@
+"""The Im2Vec VAE: encoder -> z -> path codes -> closed cubic paths -> soft raster."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import torch
+from torch import nn
+
+from ..config import ModelConfig
+from ..raster import render_paths
+from ..raster.bezier import flatten_closed, polygon_area
+from .decoder import PathCodes, PathDecoder
+from .encoder import Encoder
+
+
+def parse_palette(spec: str) -> torch.Tensor | None:
+    """``"#rrggbb,#rrggbb"`` -> ``(K, 3)`` in [0, 1], or ``None`` for an empty spec."""
+    if not spec:
+        return None
+    cols = []
+    for c in spec.split(","):
+        c = c.strip().lstrip("#")
+        if len(c) != 6:
+            raise ValueError(f"palette colours must be #rrggbb, got {c!r}")
+        cols.append([int(c[i : i + 2], 16) / 255 for i in (0, 2, 4)])
+    return torch.tensor(cols)
+
+
+@dataclass
+class Decoded:
+    """Decoder output for a batch.
+
+    points ``(B, P, 3k, 2)`` normalised frame; colors ``(B, G, 3)``; depth ``(B, G)``;
+    shape_index ``(P,)`` or ``None`` (G = P); fill_rule of every shape.
+    """
+
+    points: torch.Tensor
+    colors: torch.Tensor
+    depth: torch.Tensor
+    shape_index: torch.Tensor | None
+    fill_rule: str
+
+
+class Im2Vec(nn.Module):
+    """The model of the paper (sec. 3), configured by ``ModelConfig``."""
+
+    def __init__(self, config: ModelConfig):
+        super().__init__()
+        if config.grouping not in ("evenodd", "layers"):
+            raise ValueError(f"grouping must be 'evenodd' or 'layers', got {config.grouping!r}")
+        self.config = config
+        self.encoder = Encoder(config.image_size, config.channels, config.latent, config.enc_width)
+        self.codes = PathCodes(config.latent, config.lstm_hidden, config.code, config.paths)
+        self.decoder = PathDecoder(config.code, config.dec_width, config.dec_layers, config.deform, config.deform_width)
+        # Distinct start positions: identical initial circles would cancel under even-odd.
+        ang = torch.arange(config.paths) * (2 * math.pi / config.paths)
+        spread = 0.2 if config.paths > 1 else 0.0
+        centres = 0.5 + spread * torch.stack([ang.cos(), ang.sin()], -1)  # (P, 2)
+        self.register_buffer("centres", centres, persistent=False)
+        pal = parse_palette(config.palette)
+        self.register_buffer("palette", pal if pal is not None else torch.zeros(0, 3), persistent=False)
+        if pal is not None:
+            self.palette_logits = nn.Linear(2 * config.lstm_hidden, pal.shape[0])
+
+    def encode(self, images: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """``(B, C, S, S)`` in [0, 1] -> ``mu, logvar (B, D)``."""
+        s = self.config.image_size
+        if images.dim() != 4 or images.shape[1:] != (self.config.channels, s, s):
+            raise ValueError(f"images must be (B, {self.config.channels}, {s}, {s}), got {tuple(images.shape)}")
+        return self.encoder(images)
+
+    def decode(self, z: torch.Tensor, segments: int | None = None) -> Decoded:
+        """``z (B, D)`` -> paths of ``segments`` cubic segments each (default ``config.segments``)."""
+        cfg = self.config
+        k = segments or cfg.segments
+        if k < 1:
+            raise ValueError(f"segments must be >= 1, got {k}")
+        b = z.shape[0]
+        code, depth, color, h = self.codes(z)  # (B, P, C), (B, P), (B, P, 3), (B, P, 2H)
+        if self.palette.numel():
+            # fixed palette (colour-segmented data): a soft choice among its colours
+            color = torch.softmax(self.palette_logits(h), -1) @ self.palette.to(h.dtype)  # (B, P, 3)
+        centre = self.centres.to(z.dtype).expand(b, -1, -1).flatten(0, 1)  # (B*P, 2)
+        pts = self.decoder(code.flatten(0, 1), k, centre).view(b, cfg.paths, 3 * k, 2)  # (B, P, 3k, 2)
+        if cfg.grouping == "evenodd":
+            # one shape, all paths under even-odd: its colour is the mean of the path colours
+            return Decoded(pts, color.mean(1, keepdim=True), depth.new_zeros(b, 1),
+                           torch.zeros(cfg.paths, dtype=torch.long, device=z.device), "evenodd")
+        return Decoded(pts, color, depth, None, "nonzero")
+
+    def render(self, dec: Decoded, size: int | None = None, tau: float = 0.4, composite: str = "soft") -> torch.Tensor:
+        """Rasterise decoded paths to ``(B, 3, size, size)``."""
+        cfg = self.config
+        return render_paths(
+            dec.points, dec.colors, dec.depth, size=size or cfg.image_size, tau=tau, fill_rule=dec.fill_rule,
+            shape_index=dec.shape_index, samples=cfg.samples, composite=composite,
+        )
+
+    def forward(self, images: torch.Tensor, segments: int | None = None, sample: bool = True):
+        """Reconstruct a batch. Returns ``(Decoded, mu, logvar)``; ``z = mu`` when not sampling."""
+        mu, logvar = self.encode(images)
+        z = mu + torch.randn_like(mu) * (0.5 * logvar).exp() if sample else mu
+        return self.decode(z, segments), mu, logvar
+
+    @staticmethod
+    def path_areas(points: torch.Tensor, samples: int = 8) -> torch.Tensor:
+        """Absolute area of each path in normalised units, ``(B, P, 3k, 2) -> (B, P)``;
+        unused paths collapse to ~0 and are dropped on export."""
+        return polygon_area(flatten_closed(points, samples)).abs()
+
+
+def kl_divergence(mu: torch.Tensor, logvar: torch.Tensor) -> torch.Tensor:
+    """KL(q(z|x) || N(0, I)) summed over latent dims, averaged over the batch."""
+    return (-0.5 * (1 + logvar - mu.square() - logvar.exp()).sum(-1)).mean()

@@ -1,0 +1,90 @@
+import pytest
+import torch
+
+from im2vec_cli.checkpoint import from_pretrained, save_pretrained
+from im2vec_cli.config import ModelConfig
+from im2vec_cli.errors import Im2VecError, ModelError
+from im2vec_cli.model.decoder import PathDecoder
+from im2vec_cli.model.vae import Im2Vec
+
+TINY = dict(image_size=32, latent=16, enc_width=8, lstm_hidden=16, code=8, dec_width=16, dec_layers=3, deform_width=8)
+
+
+@pytest.mark.parametrize("k", [1, 7, 16, 25])
+def test_path_decoder_keeps_length_3k(k):
+    dec = PathDecoder(code=8, width=16, layers=4, deform=True, deform_width=8)
+    torch.nn.init.normal_(dec.net[-1].weight)
+    out = dec(torch.randn(5, 8), k)
+    assert out.shape == (5, 3 * k, 2)
+    assert (out >= 0).all() and (out <= 1).all()
+
+
+@pytest.mark.parametrize("paths,grouping", [(1, "evenodd"), (3, "evenodd"), (4, "layers")])
+@pytest.mark.parametrize("batch", [1, 2])
+def test_model_shapes(paths, grouping, batch):
+    m = Im2Vec(ModelConfig(paths=paths, grouping=grouping, **TINY))
+    x = torch.rand(batch, 3, 32, 32)
+    for k in (7, 12):
+        dec, mu, logvar = m(x, k)
+        assert dec.points.shape == (batch, paths, 3 * k, 2)
+        g = 1 if grouping == "evenodd" else paths
+        assert dec.colors.shape == (batch, g, 3) and dec.depth.shape == (batch, g)
+        assert mu.shape == logvar.shape == (batch, 16)
+        assert m.render(dec).shape == (batch, 3, 32, 32)
+
+
+def test_bad_image_shape_names_the_argument():
+    m = Im2Vec(ModelConfig(**TINY))
+    with pytest.raises(ValueError, match="images"):
+        m.encode(torch.rand(1, 3, 64, 64))
+
+
+def test_palette_restricts_colours():
+    m = Im2Vec(ModelConfig(palette="#000000", **TINY))
+    dec, _, _ = m(torch.rand(2, 3, 32, 32), 7)
+    assert torch.allclose(dec.colors, torch.zeros_like(dec.colors))
+
+
+def test_sample_deformation_can_be_switched_off():
+    m = Im2Vec(ModelConfig(deform=False, **TINY))
+    assert m.decoder.deform is None
+    assert m(torch.rand(1, 3, 32, 32), 7)[0].points.shape == (1, 4, 21, 2)
+
+
+def test_save_load_round_trip(tmp_path):
+    torch.manual_seed(0)
+    m = Im2Vec(ModelConfig(**TINY))
+    for p in m.parameters():
+        p.data.normal_(0, 0.1)
+    save_pretrained(m, tmp_path / "m")
+    m2 = from_pretrained(tmp_path / "m")
+    x = torch.rand(2, 3, 32, 32)
+    m.eval()
+    a, _, _ = m(x, 9, sample=False)
+    b, _, _ = m2(x, 9, sample=False)
+    assert torch.equal(a.points, b.points) and torch.equal(a.colors, b.colors)
+
+
+def test_from_pretrained_errors(tmp_path):
+    with pytest.raises(ModelError, match="unknown model"):
+        from_pretrained("no-such-model")
+    m = Im2Vec(ModelConfig(**TINY))
+    save_pretrained(m, tmp_path / "m")
+    (tmp_path / "m" / "model.safetensors").write_bytes(b"garbage")
+    with pytest.raises(ModelError, match="unreadable"):
+        from_pretrained(tmp_path / "m")
+    save_pretrained(Im2Vec(ModelConfig(**{**TINY, "latent": 8})), tmp_path / "other")
+    (tmp_path / "m" / "model.safetensors").write_bytes((tmp_path / "other" / "model.safetensors").read_bytes())
+    with pytest.raises(ModelError, match="shape"):
+        from_pretrained(tmp_path / "m")
+    (tmp_path / "m" / "model.safetensors").unlink()
+    with pytest.raises(ModelError, match="missing"):
+        from_pretrained(tmp_path / "m")
+
+
+def test_config_rejects_unknown_keys_and_types():
+    with pytest.raises(Im2VecError, match="unknown"):
+        ModelConfig.from_dict({"nope": 1})
+    with pytest.raises(Im2VecError, match="latent"):
+        ModelConfig.from_dict({"latent": "big"})
+    assert ModelConfig.from_dict(ModelConfig(latent=7).to_dict()).latent == 7

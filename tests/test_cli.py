@@ -1,0 +1,185 @@
+import json
+import subprocess
+import sys
+import zlib
+from pathlib import Path
+from xml.etree import ElementTree
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from PIL import Image
+
+from im2vec_cli.checkpoint import save_pretrained
+from im2vec_cli.cli import cli
+from im2vec_cli.config import ModelConfig
+from im2vec_cli.model.vae import Im2Vec
+from im2vec_cli.svg import rasterize_svg
+
+TINY = ModelConfig(image_size=32, latent=16, enc_width=8, lstm_hidden=16, code=8, dec_width=16, dec_layers=3,
+                   deform_width=8, segments=6)
+
+
+@pytest.fixture(scope="module")
+def model_dir(tmp_path_factory):
+    import torch
+
+    torch.manual_seed(0)
+    m = Im2Vec(TINY)
+    for p in m.decoder.net[-1].parameters():
+        p.data.normal_(0, 0.05)
+    d = tmp_path_factory.mktemp("m") / "tiny"
+    save_pretrained(m, d)
+    return str(d)
+
+
+def png(path, w=40, h=24, mode="RGB"):
+    arr = np.full((h, w, 3), 255, np.uint8)
+    arr[h // 4 : 3 * h // 4, w // 4 : 3 * w // 4] = 0
+    Image.fromarray(arr).convert(mode).save(path)
+    return str(path)
+
+
+def run(args):
+    return CliRunner().invoke(cli, args, catch_exceptions=False)
+
+
+def check_svg(text, w, h):
+    root = ElementTree.fromstring(text)
+    assert root.get("viewBox") == f"0 0 {w} {h}"
+    for p in root.iter("{http://www.w3.org/2000/svg}path"):
+        d = p.get("d")
+        assert d.startswith("M") and d.rstrip().endswith("Z")
+    assert rasterize_svg(text, w, h).shape == (h, w, 3)
+
+
+def test_help_and_version():
+    assert run(["--help"]).exit_code == 0
+    for cmd in ("vectorize", "encode", "sample", "interpolate", "train", "render"):
+        res = run([cmd, "--help"])
+        assert res.exit_code == 0 and "Exit codes" in res.output
+    assert "0.1.0" in run(["--version"]).output
+
+
+def test_vectorize_file_keeps_input_frame(tmp_path, model_dir):
+    src = png(tmp_path / "a.png", 40, 24)
+    res = run(["vectorize", src, "-o", str(tmp_path / "a.svg"), "--model", model_dir])
+    assert res.exit_code == 0, res.output
+    check_svg((tmp_path / "a.svg").read_text(), 40, 24)
+
+
+@pytest.mark.parametrize("mode", ["L", "RGBA", "P", "I;16"])
+def test_vectorize_image_modes(tmp_path, model_dir, mode):
+    src = png(tmp_path / "a.png", 30, 30, mode if mode != "I;16" else "L")
+    if mode == "I;16":
+        Image.open(src).convert("I;16").save(src)
+    res = run(["vectorize", src, "-o", "-", "--model", model_dir])
+    assert res.exit_code == 0, res.output
+    check_svg(res.stdout, 30, 30)
+
+
+def test_vectorize_folder_and_batch_with_bad_files(tmp_path, model_dir):
+    d = tmp_path / "in"
+    (d / "sub").mkdir(parents=True)
+    png(d / "a.png")
+    png(d / "sub" / "b.png")
+    (d / "c.png").write_bytes(b"not an image")
+    res = CliRunner().invoke(cli, ["vectorize", str(d), "-o", str(tmp_path / "out"), "--model", model_dir])
+    assert res.exit_code == 1
+    assert (tmp_path / "out" / "a.svg").is_file() and (tmp_path / "out" / "sub" / "b.svg").is_file()
+    assert not (tmp_path / "out" / "c.svg").exists()
+    assert "c.png" in res.output and "1 of 3 inputs failed" in res.output
+
+
+def _bomb(path):
+    # a valid PNG header that claims 30000 x 30000 pixels
+    def chunk(kind, data):
+        return len(data).to_bytes(4, "big") + kind + data + zlib.crc32(kind + data).to_bytes(4, "big")
+
+    ihdr = (30000).to_bytes(4, "big") * 2 + bytes([8, 0, 0, 0, 0])
+    raw = zlib.compress(b"\x00" * 30001 * 10)
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", raw) + chunk(b"IEND", b""))
+
+
+BAD = {
+    "missing": lambda p: None,
+    "text": lambda p: p.write_text("hello"),
+    "zero": lambda p: p.write_bytes(b""),
+    "truncated": lambda p: p.write_bytes(Path(png(p)).read_bytes()[:60]),
+    "bomb": _bomb,
+}
+
+
+@pytest.mark.parametrize("kind", list(BAD))
+def test_bad_input_is_one_line_error(tmp_path, model_dir, kind):
+    src = tmp_path / "x.png"
+    BAD[kind](src)
+    out = tmp_path / "x.svg"
+    res = CliRunner().invoke(cli, ["vectorize", str(src), "-o", str(out), "--model", model_dir])
+    assert res.exit_code == 1
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("Error: ") and "Traceback" not in res.output
+    assert not out.exists() and not list(tmp_path.glob(".x.svg*"))
+
+
+def test_bad_model_and_output(tmp_path, model_dir):
+    src = png(tmp_path / "a.png")
+    res = CliRunner().invoke(cli, ["vectorize", src, "--model", "no-such-model"])
+    assert res.exit_code == 1 and res.output.startswith("Error: unknown model")
+    broken = tmp_path / "broken"
+    broken.mkdir()
+    (broken / "config.json").write_text(Path(model_dir, "config.json").read_text())
+    res = CliRunner().invoke(cli, ["vectorize", src, "--model", str(broken)])
+    assert res.exit_code == 1 and "missing" in res.output
+    res = CliRunner().invoke(cli, ["vectorize", src, "--model", model_dir, "-o", str(tmp_path / "nodir" / "x.svg")])
+    assert res.exit_code == 1 and res.output.startswith("Error:") and len(res.output.strip().splitlines()) == 1
+    res = CliRunner().invoke(cli, ["vectorize", src, "--model", model_dir, "--segments", "zero"])
+    assert res.exit_code == 2
+
+
+def test_encode_jsonl_and_npy(tmp_path, model_dir):
+    a, b = png(tmp_path / "a.png"), png(tmp_path / "b.png", 20, 20)
+    res = run(["encode", a, b, "--model", model_dir])
+    rows = [json.loads(x) for x in res.stdout.splitlines()]
+    assert [r["file"] for r in rows] == [a, b] and len(rows[0]["latent"]) == 16
+    res = run(["encode", a, "--format", "npy", "-o", str(tmp_path / "z"), "--model", model_dir])
+    assert res.exit_code == 0
+    assert np.load(tmp_path / "z" / "a.npy").shape == (16,)
+
+
+def test_sample_and_interpolate(tmp_path, model_dir):
+    res = run(["sample", "--n", "3", "-o", str(tmp_path / "s"), "--model", model_dir, "--seed", "1"])
+    assert res.exit_code == 0
+    assert len(list((tmp_path / "s").glob("*.svg"))) == 3 and (tmp_path / "s" / "contact.png").is_file()
+    a, b = png(tmp_path / "a.png"), png(tmp_path / "b.png", 20, 30)
+    run(["encode", b, "--format", "npy", "-o", str(tmp_path / "z"), "--model", model_dir])
+    res = run(["interpolate", a, str(tmp_path / "z" / "b.npy"), "--steps", "4", "-o", str(tmp_path / "i"),
+               "--model", model_dir, "--animate"])
+    assert res.exit_code == 0, res.output
+    frames = sorted((tmp_path / "i").glob("frame_*.svg"))
+    assert len(frames) == 6
+    for f in frames:
+        check_svg(f.read_text(), 32, 32)
+    morph = (tmp_path / "i" / "morph.svg").read_text()
+    root = ElementTree.fromstring(morph)
+    anims = list(root.iter("{http://www.w3.org/2000/svg}animate"))
+    assert anims and all(len(a.get("values").split(";")) == 11 for a in anims)
+    np.save(tmp_path / "nan.npy", np.full(16, np.nan, np.float32))
+    res = CliRunner().invoke(cli, ["interpolate", a, str(tmp_path / "nan.npy"), "-o", str(tmp_path / "j"),
+                                   "--model", model_dir])
+    assert res.exit_code == 1 and "NaN" in res.output
+
+
+def test_subprocess_pipeline(tmp_path, model_dir):
+    src = png(tmp_path / "g.png", 32, 32)
+    exe = [sys.executable, "-m", "im2vec_cli"]
+    out = tmp_path / "g.svg"
+    r = subprocess.run(exe + ["vectorize", src, "-o", str(out), "--model", model_dir], capture_output=True)
+    assert r.returncode == 0, r.stderr
+    check_svg(out.read_text(), 32, 32)
+    r = subprocess.run(exe + ["vectorize", "-", "--model", model_dir], input=Path(src).read_bytes(),
+                       capture_output=True)
+    assert r.returncode == 0 and r.stderr == b""
+    check_svg(r.stdout.decode(), 32, 32)
+    r = subprocess.run(exe + ["vectorize", "-", "--model", model_dir], input=b"junk", capture_output=True)
+    assert r.returncode == 1 and r.stdout == b"" and r.stderr.decode().count("\n") == 1

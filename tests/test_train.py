@@ -1,0 +1,124 @@
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+import torch
+
+from im2vec_cli.config import ModelConfig, TrainConfig
+from im2vec_cli.errors import DataError
+from im2vec_cli.train import evaluate_l2, train
+from tests.helpers import synthetic_shapes
+
+MODEL = ModelConfig(image_size=32, latent=64, enc_width=16, lstm_hidden=64, code=32, dec_width=64, dec_layers=3,
+                    deform_width=16, paths=2, segments=8, min_segments=6, max_segments=10, levels=3,
+                    palette="#000000")
+
+
+def fast_cfg(**kw):
+    base = dict(steps=6, batch=8, val_every=1000, ckpt_every=1000, preview_every=1000, log_every=1, lr=2e-3,
+                tau_start=1.0, tau_end=0.5, val_fraction=0.2)
+    base.update(kw)
+    return TrainConfig(**base)
+
+
+@pytest.fixture(scope="module")
+def shapes():
+    return synthetic_shapes(128, 32)
+
+
+def test_learning_cuts_val_loss_5x(tmp_path, shapes):
+    cfg = fast_cfg(steps=500, batch=16, lr=5e-3, beta=0.0, val_every=500, ckpt_every=500, preview_every=500,
+                   val_fraction=0.1)
+    from im2vec_cli.model.vae import Im2Vec
+
+    torch.manual_seed(cfg.seed)
+    before = evaluate_l2(Im2Vec(MODEL), shapes[-12:], MODEL.segments, cfg.tau_end)["val_pyramid_l2"]
+    out = train(None, tmp_path / "run", MODEL, cfg, images=shapes)
+    lines = [json.loads(x) for x in (tmp_path / "run" / "metrics.jsonl").read_text().splitlines()]
+    after = [x for x in lines if x["event"] == "val"][-1]["val_pyramid_l2"]
+    assert after <= before / 5, (before, after)
+    assert (out / "config.json").is_file() and (out / "model.safetensors").is_file()
+    assert list((tmp_path / "run").glob("preview_*.png"))
+
+
+def test_resume_is_exact(tmp_path, shapes):
+    straight = tmp_path / "a"
+    train(None, straight, MODEL, fast_cfg(steps=6, ckpt_every=3), images=shapes)
+    split = tmp_path / "b"
+    with pytest.raises(KeyboardInterrupt):
+        train(None, split, MODEL, fast_cfg(steps=6, ckpt_every=100), images=shapes, on_event=_stop_after(3))
+    train(None, split, MODEL, fast_cfg(steps=6, ckpt_every=3), images=shapes, resume=True)
+    a = torch.load(straight / "checkpoint.pt", weights_only=False)
+    b = torch.load(split / "checkpoint.pt", weights_only=False)
+    assert a["step"] == b["step"] == 6
+    for k in a["model"]:
+        assert torch.allclose(a["model"][k], b["model"][k], atol=1e-6), k
+
+
+def _stop_after(n):
+    return lambda e: _raise_kbd(e, n)
+
+
+def _raise_kbd(e, n):
+    if e.get("event") == "train" and e["step"] == n:
+        raise KeyboardInterrupt
+
+
+def test_interrupt_saves_checkpoint(tmp_path, shapes):
+    with pytest.raises(KeyboardInterrupt):
+        train(None, tmp_path / "r", MODEL, fast_cfg(steps=50), images=shapes, on_event=lambda e: _raise_kbd(e, 2))
+    state = torch.load(tmp_path / "r" / "checkpoint.pt", weights_only=False)
+    assert state["step"] == 2
+
+
+def test_empty_and_bad_folders(tmp_path):
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(DataError, match="no images"):
+        train(tmp_path / "empty", tmp_path / "run", MODEL, fast_cfg())
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "a.png").write_bytes(b"not a png")
+    with pytest.raises(DataError, match="could be read"):
+        train(bad, tmp_path / "run", MODEL, fast_cfg())
+
+
+def test_cli_train_skips_unreadable_files(tmp_path, shapes):
+    from click.testing import CliRunner
+    from PIL import Image
+
+    from im2vec_cli.cli import cli
+
+    d = tmp_path / "data"
+    d.mkdir()
+    for i, img in enumerate(shapes[:12]):
+        Image.fromarray(img.permute(1, 2, 0).numpy()).save(d / f"{i}.png")
+    (d / "broken.png").write_bytes(b"\x89PNG\r\n\x1a\n truncated")
+    cfg = tmp_path / "cfg.json"
+    cfg.write_text(json.dumps({"model": MODEL.to_dict(), "train": {"val_every": 2, "log_every": 1}}))
+    res = CliRunner().invoke(cli, ["train", str(d), "--out", str(tmp_path / "run"), "--config", str(cfg),
+                                   "--steps", "2", "--batch", "4", "--device", "cpu"])
+    assert res.exit_code == 0, res.output
+    assert "Warning: skipped" in res.output and "broken.png" in res.output
+    assert (tmp_path / "run" / "model" / "config.json").is_file()
+
+
+def test_ddp_two_cpu_processes(tmp_path, shapes):
+    from PIL import Image
+
+    d = tmp_path / "data"
+    d.mkdir()
+    for i, img in enumerate(shapes[:16]):
+        Image.fromarray(img.permute(1, 2, 0).numpy()).save(d / f"{i}.png")
+    cfg = tmp_path / "cfg.json"
+    cfg.write_text(json.dumps({"model": MODEL.to_dict(), "train": {"val_every": 2, "ckpt_every": 2}}))
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    cmd = [sys.executable, "-m", "torch.distributed.run", "--nproc_per_node", "2", "--standalone", "-m", "im2vec_cli",
+           "train", str(d), "--out", str(tmp_path / "run"), "--config", str(cfg), "--steps", "2", "--batch", "4",
+           "--device", "cpu"]
+    res = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
+    assert res.returncode == 0, res.stderr[-2000:]
+    state = torch.load(tmp_path / "run" / "checkpoint.pt", weights_only=False)
+    assert state["step"] == 2 and len(state["generator"]) == 2
+    assert (tmp_path / "run" / "model" / "model.safetensors").is_file()
