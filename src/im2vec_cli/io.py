@@ -20,9 +20,9 @@ from .errors import InputError
 MAX_PIXELS = 64_000_000  # larger images are refused (decompression bombs)
 
 
-def atomic_write(path: str | os.PathLike, data: bytes | str) -> None:
+def atomic_write(path: str | os.PathLike, data: bytes | str, *, durable: bool = True) -> None:
     """Write ``data`` to ``path`` through a temporary file and a rename, so that a crash
-    never leaves a partial file behind."""
+    never leaves a partial file behind. ``durable=False`` skips the fsync (bulk datasets)."""
     path = Path(path)
     raw = data.encode("utf-8") if isinstance(data, str) else data
     directory = path.parent if str(path.parent) else Path(".")
@@ -30,8 +30,9 @@ def atomic_write(path: str | os.PathLike, data: bytes | str) -> None:
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(raw)
-            f.flush()
-            os.fsync(f.fileno())
+            if durable:
+                f.flush()
+                os.fsync(f.fileno())
         os.replace(tmp, path)
     except BaseException:
         try:

@@ -110,10 +110,13 @@ class FontJob:
     margin: float
 
 
-def _render_png(svg_text: str, size: int) -> bytes:
+def _render_png(svg_text: str, size: int, supersample: int = 4) -> bytes:
+    """Grey PNG of the outline: cairosvg at ``supersample`` x, box-filtered down, which gives
+    exact area coverage (cairo's own 1x coverage is ~1% off on thin strokes)."""
     from PIL import Image
 
-    arr = rasterize_svg(svg_text, size, size).mean(-1)
+    big = rasterize_svg(svg_text, size * supersample, size * supersample).mean(-1)
+    arr = big.reshape(size, supersample, size, supersample).mean((1, 3))
     buf = io.BytesIO()
     Image.fromarray(np.round(arr * 255).astype(np.uint8), "L").save(buf, format="PNG")
     return buf.getvalue()

@@ -68,11 +68,22 @@ def glyph_outline(font, char: str) -> list[np.ndarray]:
     return pen.contours
 
 
+def _curve_samples(points: np.ndarray, n: int = 32) -> np.ndarray:
+    """Points along a closed cubic contour ``(3S, 2)``: ``(S * n, 2)``."""
+    p0 = points[0::3]
+    p1, p2 = points[1::3], points[2::3]
+    p3 = np.roll(p0, -1, 0)
+    t = np.linspace(0, 1, n, endpoint=False)[None, :, None]
+    u = 1 - t
+    pts = u**3 * p0[:, None] + 3 * u * u * t * p1[:, None] + 3 * u * t * t * p2[:, None] + t**3 * p3[:, None]
+    return pts.reshape(-1, 2)
+
+
 def fit_outline(contours: list[np.ndarray], size: int, margin: float) -> list[np.ndarray]:
     """Map font-unit contours into a ``size``-pixel canvas (y down), bbox-fitted and centred."""
     if not contours:
         raise DataError("glyph has no outline")
-    allp = np.concatenate(contours, 0)
+    allp = np.concatenate([_curve_samples(c) for c in contours], 0)  # the curve's box, not the controls'
     lo, hi = allp.min(0), allp.max(0)
     extent = float(max(hi[0] - lo[0], hi[1] - lo[1]))
     if extent <= 0:
