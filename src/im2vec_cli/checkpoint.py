@@ -115,3 +115,16 @@ def load_checkpoint(path: str | Path) -> dict:
         raise ModelError(f"{path}: no checkpoint to resume from") from None
     except Exception as exc:
         raise ModelError(f"{path}: unreadable checkpoint ({type(exc).__name__})") from None
+
+
+def export_checkpoint(run_dir: str | Path, out_dir: str | Path, *, half: bool = False) -> tuple[Path, int]:
+    """Export the model of a run's ``checkpoint.pt`` as a ``from_pretrained`` folder.
+
+    Returns the folder and the step the checkpoint was taken at.
+    """
+    from .model.vae import Im2Vec
+
+    state = load_checkpoint(Path(run_dir) / "checkpoint.pt")
+    model = Im2Vec(ModelConfig.from_dict(state["model_config"]))
+    model.load_state_dict(state["model"], strict=True)
+    return save_pretrained(model, out_dir, half=half), int(state["step"])

@@ -151,6 +151,12 @@ def train(data_dir, run_dir, val_dir, config_file, size, paths, latent, grouping
             t[key] = val
     model_cfg, train_cfg = ModelConfig.from_dict(m), TrainConfig.from_dict(t)
     dev = resolve_device(device)
+    import signal
+
+    def _term(signum, frame):  # `kill` (and SIGINT-ignoring background jobs) checkpoint like Ctrl-C
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, _term)
     bar = {}
 
     def on_event(e):
@@ -458,6 +464,40 @@ def interpolate(a, b, steps, output, segments, animate, model_name, device, seed
         full = decode(model, z, segments=k, keep_all=True)
         atomic_write(Path(output) / "morph.svg", animated_svg(full))
         click.echo(f"wrote {Path(output) / 'morph.svg'}", err=True)
+
+
+@cli.command(epilog=EXIT_HELP)
+@click.argument("run_dir", type=click.Path(file_okay=False))
+@click.option("-o", "--output", required=True, help="Model folder to write (config.json + model.safetensors).")
+@click.option("--half", is_flag=True, help="Store the weights in fp16 (half the size).")
+def export(run_dir, output, half):
+    """Export the model of a training run's latest checkpoint (e.g. after Ctrl-C)."""
+    from .checkpoint import export_checkpoint
+
+    out, step = export_checkpoint(run_dir, output, half=half)
+    click.echo(f"exported step {step} to {out}", err=True)
+
+
+@cli.command("eval", epilog=EXIT_HELP)
+@click.option("--data", "data_dir", required=True, help="Test images (DATA/test when it exists).")
+@click.option("--limit", type=click.IntRange(1), default=None, help="Evaluate a seeded subset of N images.")
+@click.option("--segments", default=None, help="Cubic segments per path (default: the model's).")
+@click.option("-o", "--output", default="-", show_default=True, help="JSON file or -.")
+@_model_options
+def eval_cmd(data_dir, limit, segments, output, model_name, device, seed):
+    """Reconstruction L2 (paper Table 1) of a model on a test folder, rendered by cairosvg.
+
+    The generation/interpolation metrics and the ImageVAE baseline are not implemented yet.
+    """
+    import json
+
+    from .evaluate import eval_files, reconstruction_l2
+    from .io import atomic_write
+
+    model = _load_model(model_name, device, seed)
+    res = reconstruction_l2(model, eval_files(data_dir, limit, seed), segments=_segments(segments))
+    res["model"] = getattr(model, "name", model_name)
+    _write_text(output, json.dumps(res, indent=1) + "\n", atomic_write)
 
 
 @cli.group(epilog=EXIT_HELP)

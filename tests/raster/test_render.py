@@ -238,3 +238,11 @@ def test_gradient_descent_fits_a_glyph(dejavu):
     _, end_single = fit(target, levels=1)
     assert end_pyr <= start / 10, (start, end_pyr)
     assert end_pyr <= end_single * 1.05, (end_pyr, end_single)
+
+
+def test_unequal_shape_groups_match_separate_renders():
+    pts = torch.stack([circle(0.3, 0.5, 0.2), circle(0.3, 0.5, 0.1), circle(0.7, 0.5, 0.15)])[None].float()
+    both = render_coverage(pts, size=24, fill_rule="evenodd", shape_index=[0, 0, 1])
+    first = render_coverage(pts[:, :2], size=24, fill_rule="evenodd", shape_index=[0, 0])
+    second = render_coverage(pts[:, 2:], size=24, fill_rule="evenodd")
+    assert torch.allclose(both, torch.cat([first, second], 1), atol=1e-6)

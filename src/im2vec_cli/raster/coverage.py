@@ -168,70 +168,72 @@ def nearest_edge(
     n, e, _ = a.shape
     dev, dt = a.device, a.dtype
     with torch.no_grad():
-        d = b - a
-        len2 = (d * d).sum(-1)
-        inv = torch.where(len2 > 0, 1.0 / len2.clamp_min(_EPS), torch.zeros_like(len2))
         ny, nx = -(-height // tile), -(-width // tile)
         ty, tx = torch.meshgrid(torch.arange(ny, device=dev), torch.arange(nx, device=dev), indexing="ij")
         ty, tx = ty.reshape(-1), tx.reshape(-1)  # (T,) tile rows / cols
-        if active is not None and not math.isfinite(radius):
-            radius = float(height + width) * 4  # a box that every tile meets, to apply the mask
-        if math.isfinite(radius):
-            lo_y = (ty * tile).to(dt) + 0.5  # pixel-centre extent of each tile
-            hi_y = (lo_y + tile - 1).clamp(max=height - 0.5)
-            lo_x = (tx * tile).to(dt) + 0.5
-            hi_x = (lo_x + tile - 1).clamp(max=width - 0.5)
-            ymin = (torch.minimum(a[..., 1], b[..., 1]) - radius).unsqueeze(1)  # (N, 1, E)
-            ymax = (torch.maximum(a[..., 1], b[..., 1]) + radius).unsqueeze(1)
-            xmin = (torch.minimum(a[..., 0], b[..., 0]) - radius).unsqueeze(1)
-            xmax = (torch.maximum(a[..., 0], b[..., 0]) + radius).unsqueeze(1)
-            mask = (ymax >= lo_y.view(1, -1, 1)) & (ymin <= hi_y.view(1, -1, 1))
-            mask &= (xmax >= lo_x.view(1, -1, 1)) & (xmin <= hi_x.view(1, -1, 1))  # (N, T, E)
-            if active is not None:
-                mask &= active.unsqueeze(1)
-            counts = mask.sum(-1)  # (N, T)
-            act_n, act_t = torch.nonzero(counts, as_tuple=True)  # (A,), (A,)
-            k = int(counts.max().item()) if counts.numel() else 0
-        else:
-            act_n = torch.arange(n, device=dev).repeat_interleave(ty.numel())
-            act_t = torch.arange(ty.numel(), device=dev).repeat(n)
-            mask = None
-            k = e
-        idx = torch.zeros(n, ny * tile, nx * tile, dtype=torch.long, device=dev)
-        if act_n.numel() == 0 or e == 0:
-            return idx[:, :height, :width]
-        k = min(_bucket(k), e)
-        if mask is not None and k < e:
-            m = mask[act_n, act_t]  # (A, E)
-            sel = torch.topk(m.to(torch.uint8), k, dim=-1, sorted=False).indices  # (A, K)
-            valid = torch.gather(m, 1, sel)
-        else:
-            sel = torch.arange(e, device=dev).expand(act_n.numel(), e)
-            valid = mask[act_n, act_t] if mask is not None else torch.ones_like(sel, dtype=torch.bool)
-
-        def pick(v, pad):
-            g = torch.gather(v[act_n], 1, sel)  # (A, K)
-            return torch.where(valid, g, torch.full_like(g, pad)).unsqueeze(1)  # (A, 1, K)
-
-        ax, ay = pick(a[..., 0], _FAR), pick(a[..., 1], _FAR)
-        dx, dy, iv = pick(d[..., 0], 0.0), pick(d[..., 1], 0.0), pick(inv, 0.0)
-        local = torch.arange(tile, device=dev)
-        oy = local.view(tile, 1).expand(tile, tile).reshape(1, -1)  # (1, tile*tile)
-        ox = local.view(1, tile).expand(tile, tile).reshape(1, -1)
-        gy = ty[act_t].view(-1, 1) * tile + oy  # (A, tile*tile) pixel rows
-        gx = tx[act_t].view(-1, 1) * tile + ox
-        py = (gy.to(dt) + 0.5).unsqueeze(-1)  # (A, tile*tile, 1)
-        px = (gx.to(dt) + 0.5).unsqueeze(-1)
-        total = act_n.numel()
-        chunk = _chunk_rows(total, tile * tile * k)
-        slots = []
-        for s in range(0, total, chunk):
-            sl = slice(s, s + chunk)
-            _, slot = _nearest_kernel(ax[sl], ay[sl], dx[sl], dy[sl], iv[sl], px[sl], py[sl])  # (A', tile*tile)
-            slots.append(slot)
-        best = torch.gather(sel, 1, torch.cat(slots, 0))  # (A, tile*tile)
-        idx[act_n.view(-1, 1), gy, gx] = best
+        nt = ty.numel()
+        if not math.isfinite(radius):
+            radius = float(height + width) * 4  # a box that every tile meets
+        lo_y = (ty * tile).to(dt) + 0.5  # pixel-centre extent of each tile
+        lo_x = (tx * tile).to(dt) + 0.5
+        box = torch.stack([lo_x, (lo_x + tile - 1).clamp(max=width - 0.5),
+                           lo_y, (lo_y + tile - 1).clamp(max=height - 0.5)], -1)  # (T, 4)
+        act = active if active is not None else torch.ones(n, e, dtype=torch.bool, device=dev)
+        table, mask, counts = _candidates(a, b, act, box, torch.tensor(radius, dtype=dt, device=dev))
+        tiles = torch.nonzero(counts.view(-1)).view(-1)  # (A,) active (path, tile) pairs
+        idx = torch.zeros(n * nt, tile * tile, dtype=torch.long, device=dev)
+        if tiles.numel() and e:
+            k = min(_bucket(int(counts.max().item())), e)
+            act_n, act_t = tiles // nt, tiles % nt
+            m = mask.view(n * nt, e)[tiles]  # (A, E)
+            if k < e:
+                sel = torch.topk(m.to(torch.uint8), k, dim=-1, sorted=False).indices  # (A, K)
+                valid = torch.gather(m, 1, sel)
+            else:
+                sel, valid = torch.arange(e, device=dev).expand(tiles.numel(), e), m
+            sel = torch.where(valid, sel, e)  # slot e of each path is the far-away padding edge
+            cand = table.view(-1, 5)[act_n.view(-1, 1) * (e + 1) + sel]  # (A, K, 5)
+            local = torch.arange(tile, device=dev)
+            py = ((ty[act_t] * tile).view(-1, 1, 1) + local.view(1, tile, 1)).expand(-1, tile, tile)
+            px = ((tx[act_t] * tile).view(-1, 1, 1) + local.view(1, 1, tile)).expand(-1, tile, tile)
+            py = (py.reshape(-1, tile * tile, 1).to(dt) + 0.5)  # (A, tile*tile, 1)
+            px = (px.reshape(-1, tile * tile, 1).to(dt) + 0.5)
+            c = cand.unsqueeze(1)  # (A, 1, K, 5)
+            total = tiles.numel()
+            chunk = _chunk_rows(total, tile * tile * k)
+            slots = []
+            for s in range(0, total, chunk):
+                sl = slice(s, s + chunk)
+                _, slot = _nearest_kernel(c[sl, ..., 0], c[sl, ..., 1], c[sl, ..., 2], c[sl, ..., 3], c[sl, ..., 4],
+                                          px[sl], py[sl])  # (A', tile*tile)
+                slots.append(slot)
+            best = torch.gather(sel, 1, torch.cat(slots, 0)).clamp_(max=e - 1)  # (A, tile*tile)
+            idx[tiles] = best
+        idx = idx.view(n, ny, nx, tile, tile).permute(0, 1, 3, 2, 4).reshape(n, ny * tile, nx * tile)
         return idx[:, :height, :width]  # (N, H, W)
+
+
+@maybe_compile
+def _candidates(a, b, active, box, radius):
+    """Edge table with a padding row, and which edges are candidates for which tile.
+
+    Returns ``table (N, E+1, 5)`` = ``[ax, ay, dx, dy, 1/|d|^2]`` (row E: an edge parked far
+    away), ``mask (N, T, E)`` and ``counts (N, T)``.
+    """
+    d = b - a
+    len2 = (d * d).sum(-1)
+    inv = torch.where(len2 > 0, 1.0 / len2.clamp_min(_EPS), torch.zeros_like(len2))
+    table = torch.stack([a[..., 0], a[..., 1], d[..., 0], d[..., 1], inv], -1)  # (N, E, 5)
+    pad = torch.tensor([_FAR, _FAR, 0.0, 0.0, 0.0], dtype=a.dtype, device=a.device).expand(a.shape[0], 1, 5)
+    table = torch.cat([table, pad], 1)
+    lo = torch.minimum(a, b) - radius  # (N, E, 2)
+    hi = torch.maximum(a, b) + radius
+    mask = (
+        (hi[:, None, :, 0] >= box[None, :, None, 0]) & (lo[:, None, :, 0] <= box[None, :, None, 1])
+        & (hi[:, None, :, 1] >= box[None, :, None, 2]) & (lo[:, None, :, 1] <= box[None, :, None, 3])
+        & active[:, None, :]
+    )  # (N, T, E)
+    return table, mask, mask.sum(-1)
 
 
 def _chunk_rows(rows: int, pairs_per_row: int) -> int:
@@ -271,6 +273,20 @@ def _edge_distance(a, b, idx):
     q = r - t.unsqueeze(-1) * d
     dist = torch.sqrt((q * q).sum(-1) + _EPS)
     return dist.reshape(n, h, w)
+
+
+@maybe_compile
+def shade(a, b, idx, wind, radius, tau, evenodd: bool):
+    """Soft coverage ``sigmoid(sign * min(d, radius) / tau)`` of ``(N, H, W)`` pixels.
+
+    Args:
+        a, b: ``(N, E, 2)`` edges; idx ``(N, H, W)`` nearest edge; wind ``(N, H, W)``.
+        radius, tau: 0-d tensors (tensors, so that annealing them does not recompile).
+        evenodd: fill rule (else nonzero).
+    """
+    dist = _edge_distance(a, b, idx).clamp(max=radius)
+    inside = torch.remainder(wind, 2) != 0 if evenodd else wind != 0
+    return torch.sigmoid(torch.where(inside, dist, -dist) / tau)
 
 
 def inside_from_winding(wind: torch.Tensor, fill_rule: str) -> torch.Tensor:

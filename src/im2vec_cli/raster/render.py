@@ -20,7 +20,7 @@ from torch import nn
 
 from .bezier import flatten_closed
 from .composite import composite_over, composite_soft
-from .coverage import boundary_edges, edge_distance, inside_from_winding, nearest_edge, winding_number
+from .coverage import boundary_edges, edge_distance, inside_from_winding, nearest_edge, shade, winding_number
 from .pyramid import pyramid_sizes
 
 
@@ -79,15 +79,32 @@ def render_coverage(
     radius = 8.0 * tau if radius is None else float(radius)
     scale = torch.tensor([w, h], dtype=points.dtype, device=points.device)
     verts = flatten_closed(points * scale, samples)  # (B, P, E, 2) pixel frame
+    e = verts.shape[2]
     sidx = shape_index_tensor(shape_index, p, points.device)
-    active = boundary_edges(verts, sidx).flatten(0, 1) if fill_rule == "nonzero" else None
-    a = verts.flatten(0, 1)  # (B*P, E, 2)
-    bb = torch.roll(a, shifts=-1, dims=1)
-    wind = winding_number(a, bb, h, w).view(b, p, h, w)
-    idx = nearest_edge(a, bb, h, w, radius=radius, active=active)
-    dist = edge_distance(a, bb, idx).view(b, p, h, w)  # (B, P, H, W)
-    if sidx is not None:
-        g = int(sidx.max().item()) + 1 if p else 0
+    active = boundary_edges(verts, sidx) if fill_rule == "nonzero" else None  # (B, P, E)
+    ends = torch.roll(verts, shifts=-1, dims=2)  # each path closes on itself
+    counts = torch.bincount(sidx) if sidx is not None else None
+    if sidx is None or bool((counts == counts[0]).all()):
+        # Shapes of equal size (one path each, or one shape of all paths): each shape is a
+        # single edge set, so winding and nearest edge are computed per shape directly.
+        g = p if sidx is None else counts.numel()
+        order = torch.arange(p, device=points.device) if sidx is None else torch.argsort(sidx, stable=True)
+        a = verts[:, order].reshape(b * g, -1, 2)  # (B*G, (P/G)*E, 2)
+        bb = ends[:, order].reshape(b * g, -1, 2)
+        act = active[:, order].reshape(b * g, -1) if active is not None else None
+        wind = winding_number(a, bb, h, w)
+        idx = nearest_edge(a, bb, h, w, radius=radius, active=act)
+        # distance, sign and sigmoid in one compiled graph (forward and backward fused)
+        r = torch.tensor(radius if math.isfinite(radius) else 1e30, dtype=points.dtype, device=points.device)
+        t = torch.tensor(tau, dtype=points.dtype, device=points.device)
+        return shade(a, bb, idx, wind, r, t, fill_rule == "evenodd").view(b, g, h, w)
+    else:
+        a, bb = verts.reshape(b * p, e, 2), ends.reshape(b * p, e, 2)
+        act = active.reshape(b * p, e) if active is not None else None
+        wind = winding_number(a, bb, h, w).view(b, p, h, w)
+        idx = nearest_edge(a, bb, h, w, radius=radius, active=act)
+        dist = edge_distance(a, bb, idx).view(b, p, h, w)  # (B, P, H, W)
+        g = counts.numel()
         wind = torch.zeros(b, g, h, w, dtype=wind.dtype, device=wind.device).index_add_(1, sidx, wind)
         member = torch.arange(g, device=points.device).view(g, 1) == sidx.view(1, p)  # (G, P)
         inf = torch.tensor(math.inf, dtype=dist.dtype, device=dist.device)
