@@ -25,7 +25,8 @@ lint: install
 
 bench: install
 	$(PY) bench/raster.py
-	@if [ -f bench/train.py ]; then $(PY) bench/train.py; fi
+	$(PY) bench/train.py
+	$(PY) bench/cli.py
 
 demo: install
 	@mkdir -p out/demo
