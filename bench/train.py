@@ -22,8 +22,21 @@ from im2vec_cli.train import Lookahead  # noqa: E402
 B, K = 64, 16
 
 
+CONFIGS = {
+    "default (shipped fonts model)": ModelConfig(palette="#000000"),
+    "lean (enc 16, dec 96x3, LSTM 64)": ModelConfig(palette="#000000", enc_width=16, dec_width=96, dec_layers=3,
+                                                    lstm_hidden=64),
+}
+
+
 def main():
-    cfg = ModelConfig(palette="#000000")
+    print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, compile={os.environ.get('IM2VEC_COMPILE', '1')}")
+    for name, cfg in CONFIGS.items():
+        print(f"== {name}")
+        measure(cfg)
+
+
+def measure(cfg: ModelConfig):
     tcfg = TrainConfig()
     torch.manual_seed(0)
     model = Im2Vec(cfg)
@@ -60,7 +73,6 @@ def main():
         step(False)
     n = 10
     total = sum(step(True) for _ in range(n))
-    print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, compile={os.environ.get('IM2VEC_COMPILE', '1')}")
     print(f"workload: B={B}, 64^2, P={cfg.paths}, k={K}, pyramid levels={cfg.levels}, "
           f"decoder {cfg.dec_width}x{cfg.dec_layers}, deform={cfg.deform}")
     print(f"first step (includes torch.compile): {first:.1f} s")
