@@ -67,14 +67,19 @@ def _read_input(path: str) -> bytes:
         raise Im2VecError(f"{path}: is a directory") from None
 
 
-def _write_output(path: str, data: bytes) -> None:
+def _write_output(path: str, data: bytes | str) -> None:
+    """Write to stdout for ``-``, else atomically; a failed write is one ``Im2VecError`` line."""
+    raw = data.encode("utf-8") if isinstance(data, str) else data
     if path == "-":
-        sys.stdout.buffer.write(data)
+        sys.stdout.buffer.write(raw)
         sys.stdout.buffer.flush()
         return
     from .io import atomic_write
 
-    atomic_write(path, data)
+    try:
+        atomic_write(path, raw)
+    except OSError as exc:
+        raise Im2VecError(f"{path}: cannot write ({exc.strerror or exc})") from None
 
 
 @cli.command(epilog=EXIT_HELP)
@@ -282,7 +287,6 @@ def vectorize(ctx, inputs, output, segments, max_paths, model_name, device, seed
     `-` reads one image from stdin; with -o - the SVG goes to stdout.
     """
     from .infer import vectorize as run
-    from .io import atomic_write
     from .svg import to_svg
 
     k = _segments(segments)
@@ -296,7 +300,7 @@ def vectorize(ctx, inputs, output, segments, max_paths, model_name, device, seed
         img = _load_input_image(item)
         svg = to_svg(run(model, [img], segments=k, max_paths=max_paths)[0])
         dest = _output_for(item, root, output, ".svg", single)
-        _write_text(dest, svg, atomic_write)
+        _write_output(dest, svg)
 
     _batch(ctx, items, work)
 
@@ -314,17 +318,6 @@ def _segments(value):
     if not 1 <= k <= 200:
         raise click.BadParameter("must be between 1 and 200", param_hint="--segments")
     return k
-
-
-def _write_text(dest, text, atomic_write):
-    if dest == "-":
-        sys.stdout.write(text)
-        sys.stdout.flush()
-    else:
-        try:
-            atomic_write(dest, text)
-        except OSError as exc:
-            raise Im2VecError(f"{dest}: cannot write ({exc.strerror or exc})") from None
 
 
 @cli.command(epilog=EXIT_HELP)
@@ -367,7 +360,7 @@ def encode(ctx, inputs, output, fmt, model_name, device, seed):
         _batch(ctx, items, work)
     finally:
         if fmt == "jsonl" and lines:
-            _write_text(output, "\n".join(lines) + "\n", atomic_write)
+            _write_output(output, "\n".join(lines) + "\n")
 
 
 @cli.command(epilog=EXIT_HELP)
@@ -492,12 +485,11 @@ def eval_cmd(data_dir, limit, segments, output, model_name, device, seed):
     import json
 
     from .evaluate import eval_files, reconstruction_l2
-    from .io import atomic_write
 
     model = _load_model(model_name, device, seed)
     res = reconstruction_l2(model, eval_files(data_dir, limit, seed), segments=_segments(segments))
     res["model"] = getattr(model, "name", model_name)
-    _write_text(output, json.dumps(res, indent=1) + "\n", atomic_write)
+    _write_output(output, json.dumps(res, indent=1) + "\n")
 
 
 @cli.group(epilog=EXIT_HELP)

@@ -284,9 +284,13 @@ def shade(a, b, idx, wind, radius, tau, evenodd: bool):
         radius, tau: 0-d tensors (tensors, so that annealing them does not recompile).
         evenodd: fill rule (else nonzero).
     """
-    dist = _edge_distance(a, b, idx).clamp(max=radius)
-    inside = torch.remainder(wind, 2) != 0 if evenodd else wind != 0
-    return torch.sigmoid(torch.where(inside, dist, -dist) / tau)
+    return signed_coverage(_edge_distance(a, b, idx), wind, radius, tau, "evenodd" if evenodd else "nonzero")
+
+
+def signed_coverage(dist, wind, radius, tau, fill_rule: str) -> torch.Tensor:
+    """``sigmoid(sign * min(dist, radius) / tau)``, the sign from ``wind`` under ``fill_rule``."""
+    dist = dist.clamp(max=radius)
+    return torch.sigmoid(torch.where(inside_from_winding(wind, fill_rule), dist, -dist) / tau)
 
 
 def inside_from_winding(wind: torch.Tensor, fill_rule: str) -> torch.Tensor:

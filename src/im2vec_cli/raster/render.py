@@ -20,7 +20,7 @@ from torch import nn
 
 from .bezier import flatten_closed
 from .composite import composite_over, composite_soft
-from .coverage import boundary_edges, edge_distance, inside_from_winding, nearest_edge, shade, winding_number
+from .coverage import boundary_edges, edge_distance, nearest_edge, shade, signed_coverage, winding_number
 from .pyramid import pyramid_sizes
 
 
@@ -109,11 +109,7 @@ def render_coverage(
         member = torch.arange(g, device=points.device).view(g, 1) == sidx.view(1, p)  # (G, P)
         inf = torch.tensor(math.inf, dtype=dist.dtype, device=dist.device)
         dist = torch.where(member.view(1, g, p, 1, 1), dist.unsqueeze(1), inf).min(dim=2).values  # (B, G, H, W)
-    inside = inside_from_winding(wind, fill_rule)
-    if math.isfinite(radius):
-        dist = dist.clamp(max=radius)
-    signed = torch.where(inside, dist, -dist)
-    return torch.sigmoid(signed / tau)
+    return signed_coverage(dist, wind, radius, tau, fill_rule)
 
 
 def render_paths(
