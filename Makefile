@@ -3,7 +3,7 @@ PY ?= .venv/bin/python
 PIP ?= .venv/bin/pip
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: install test test-slow lint bench demo data-fonts data-mnist data-emoji data-icons clean
+.PHONY: install test test-slow fuzz lint bench demo data-fonts data-mnist data-emoji data-icons clean
 
 install: .venv/.installed
 
@@ -19,6 +19,9 @@ test: install
 
 test-slow: install
 	$(PY) -m pytest -q -m slow
+
+fuzz: install
+	HYPOTHESIS_PROFILE=long $(PY) -m pytest -q tests/test_fuzz.py
 
 lint: install
 	$(PY) -m ruff check src tests bench

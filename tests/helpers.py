@@ -1,8 +1,16 @@
-"""Shapes used by several tests."""
+"""Shapes and CLI helpers used by several tests."""
 
 import math
+from xml.etree import ElementTree
 
+import numpy as np
 import torch
+from click.testing import CliRunner
+from PIL import Image
+
+from im2vec_cli.cli import cli
+from im2vec_cli.config import ModelConfig
+from im2vec_cli.svg import rasterize_svg
 
 
 def circle(cx, cy, r, segments=8, dtype=torch.float64):
@@ -45,8 +53,6 @@ def synthetic_shapes(n: int, size: int, seed: int = 0):
     ``(n, 3, size, size)``, rendered by cairosvg."""
     import os
 
-    import numpy as np
-
     from im2vec_cli.svg import VectorImage, VectorShape, rasterize_svg, to_svg
 
     g = torch.Generator().manual_seed(seed)
@@ -71,3 +77,44 @@ def synthetic_shapes(n: int, size: int, seed: int = 0):
         arr = rasterize_svg(to_svg(img, 3), size, size)
         out.append(torch.from_numpy(np.round(arr * 255).astype(np.uint8)).permute(2, 0, 1))
     return torch.stack(out)
+
+
+TINY = ModelConfig(image_size=32, latent=16, enc_width=8, lstm_hidden=16, code=8, dec_width=16, dec_layers=3,
+                   deform_width=8, segments=6)
+
+
+def make_tiny_model(folder) -> str:
+    """Save a small random model (decoder head perturbed so paths are not degenerate)."""
+    from im2vec_cli.checkpoint import save_pretrained
+    from im2vec_cli.model.vae import Im2Vec
+
+    torch.manual_seed(0)
+    m = Im2Vec(TINY)
+    for p in m.decoder.net[-1].parameters():
+        p.data.normal_(0, 0.05)
+    save_pretrained(m, folder)
+    return str(folder)
+
+
+def png(path, w=40, h=24, mode="RGB"):
+    """A white image with a centred dark rectangle."""
+    arr = np.full((h, w, 3), 255, np.uint8)
+    arr[h // 4 : 3 * h // 4, w // 4 : 3 * w // 4] = 0
+    Image.fromarray(arr).convert(mode).save(path)
+    return str(path)
+
+
+def run(args, **kw):
+    return CliRunner().invoke(cli, args, catch_exceptions=False, **kw)
+
+
+def check_svg(text, w, h):
+    """Parses as XML, viewBox is the input's pixel frame, closed M..C..Z paths, renders."""
+    root = ElementTree.fromstring(text)
+    assert root.get("viewBox") == f"0 0 {w} {h}"
+    paths = list(root.iter("{http://www.w3.org/2000/svg}path"))
+    for p in paths:
+        d = p.get("d")
+        assert d.startswith("M") and d.rstrip().endswith("Z")
+    assert rasterize_svg(text, w, h).shape == (h, w, 3)
+    return paths

@@ -10,47 +10,13 @@ import pytest
 from click.testing import CliRunner
 from PIL import Image
 
-from im2vec_cli.checkpoint import save_pretrained
 from im2vec_cli.cli import cli
-from im2vec_cli.config import ModelConfig
-from im2vec_cli.model.vae import Im2Vec
-from im2vec_cli.svg import rasterize_svg
-
-TINY = ModelConfig(image_size=32, latent=16, enc_width=8, lstm_hidden=16, code=8, dec_width=16, dec_layers=3,
-                   deform_width=8, segments=6)
+from tests.helpers import check_svg, make_tiny_model, png, run
 
 
 @pytest.fixture(scope="module")
 def model_dir(tmp_path_factory):
-    import torch
-
-    torch.manual_seed(0)
-    m = Im2Vec(TINY)
-    for p in m.decoder.net[-1].parameters():
-        p.data.normal_(0, 0.05)
-    d = tmp_path_factory.mktemp("m") / "tiny"
-    save_pretrained(m, d)
-    return str(d)
-
-
-def png(path, w=40, h=24, mode="RGB"):
-    arr = np.full((h, w, 3), 255, np.uint8)
-    arr[h // 4 : 3 * h // 4, w // 4 : 3 * w // 4] = 0
-    Image.fromarray(arr).convert(mode).save(path)
-    return str(path)
-
-
-def run(args):
-    return CliRunner().invoke(cli, args, catch_exceptions=False)
-
-
-def check_svg(text, w, h):
-    root = ElementTree.fromstring(text)
-    assert root.get("viewBox") == f"0 0 {w} {h}"
-    for p in root.iter("{http://www.w3.org/2000/svg}path"):
-        d = p.get("d")
-        assert d.startswith("M") and d.rstrip().endswith("Z")
-    assert rasterize_svg(text, w, h).shape == (h, w, 3)
+    return make_tiny_model(tmp_path_factory.mktemp("m") / "tiny")
 
 
 def test_help_and_version():

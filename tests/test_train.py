@@ -122,3 +122,88 @@ def test_ddp_two_cpu_processes(tmp_path, shapes):
     state = torch.load(tmp_path / "run" / "checkpoint.pt", weights_only=False)
     assert state["step"] == 2 and len(state["generator"]) == 2
     assert (tmp_path / "run" / "model" / "model.safetensors").is_file()
+
+
+def test_sigkill_then_resume_loses_at_most_one_interval(tmp_path, shapes):
+    """A real `im2vec train` killed with SIGKILL resumes from its last checkpoint."""
+    import signal
+    import time
+
+    from PIL import Image
+
+    d = tmp_path / "data"
+    d.mkdir()
+    for i, img in enumerate(shapes[:24]):
+        Image.fromarray(img.permute(1, 2, 0).numpy()).save(d / f"{i}.png")
+    cfg = tmp_path / "cfg.json"
+    cfg.write_text(json.dumps({"model": MODEL.to_dict(),
+                               "train": {"val_every": 1000, "ckpt_every": 5, "log_every": 1, "preview_every": 1000}}))
+    run = tmp_path / "run"
+    base = [sys.executable, "-m", "im2vec_cli", "train", str(d), "--out", str(run), "--config", str(cfg),
+            "--batch", "4", "--device", "cpu"]
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    proc = subprocess.Popen(base + ["--steps", "100000"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
+    metrics = run / "metrics.jsonl"
+    deadline = time.time() + 240
+    try:
+        while time.time() < deadline:  # wait until it is mid-way between two checkpoints
+            steps = [json.loads(x)["step"] for x in metrics.read_text().splitlines()] if metrics.exists() else []
+            if steps and steps[-1] >= 13 and steps[-1] % 5 in (2, 3):
+                break
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGKILL)
+    finally:
+        proc.wait()
+    killed_at = [json.loads(x)["step"] for x in metrics.read_text().splitlines()][-1]
+    assert killed_at >= 13, "training did not get far enough before the deadline"
+    state = torch.load(run / "checkpoint.pt", weights_only=False)  # complete and loadable
+    assert killed_at - 5 <= state["step"] <= killed_at
+    res = subprocess.run(base + ["--steps", str(state["step"] + 3), "--resume"], capture_output=True, text=True,
+                         env=env, timeout=240)
+    assert res.returncode == 0, res.stderr[-2000:]
+    events = [json.loads(x) for x in metrics.read_text().splitlines()]
+    steps = [e["step"] for e in events if e["event"] == "train"]
+    restart = next(i for i in range(1, len(steps)) if steps[i] <= steps[i - 1])
+    assert steps[restart] == state["step"] + 1  # the resumed run continued from the checkpoint
+    assert torch.load(run / "checkpoint.pt", weights_only=False)["step"] == state["step"] + 3
+
+
+def test_nonfinite_loss_is_skipped_and_reported(tmp_path, shapes, monkeypatch):
+    """A NaN loss at one step leaves the weights untouched and is logged; training goes on."""
+    import im2vec_cli.train as tr
+
+    real = tr.reconstruction_loss
+    calls = {"n": 0}
+
+    def sometimes_nan(*a, **k):
+        rec, kl, dec = real(*a, **k)
+        calls["n"] += 1
+        if calls["n"] == 3:
+            rec = rec * float("nan")
+        return rec, kl, dec
+
+    monkeypatch.setattr(tr, "reconstruction_loss", sometimes_nan)
+    events = []
+    train(None, tmp_path / "r", MODEL, fast_cfg(steps=5, ckpt_every=1), images=shapes, on_event=events.append)
+    bad = [e for e in events if e["event"] == "nonfinite"]
+    assert [e["step"] for e in bad] == [3]
+    state = torch.load(tmp_path / "r" / "checkpoint.pt", weights_only=False)
+    assert state["step"] == 5 and all(torch.isfinite(v).all() for v in state["model"].values())
+
+
+def test_nonfinite_loss_weights_unchanged(tmp_path, shapes, monkeypatch):
+    import im2vec_cli.train as tr
+
+    real = tr.reconstruction_loss
+    monkeypatch.setattr(tr, "reconstruction_loss", lambda *a, **k: (lambda r: (r[0] * float("inf"), r[1], r[2]))(
+        real(*a, **k)))
+    from im2vec_cli.model.vae import Im2Vec
+
+    torch.manual_seed(fast_cfg().seed)  # train() builds its model right after this same seeding
+    init = Im2Vec(MODEL).state_dict()
+    with pytest.raises(tr.TrainingError, match="not finite for 20 steps"):
+        train(None, tmp_path / "r", MODEL, fast_cfg(steps=50, ckpt_every=10), images=shapes)
+    state = torch.load(tmp_path / "r" / "checkpoint.pt", weights_only=False)
+    assert state["step"] == 10
+    for k, v in init.items():
+        assert torch.equal(v, state["model"][k]), k

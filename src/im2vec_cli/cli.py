@@ -54,9 +54,18 @@ def cli(ctx, debug):
     ctx.obj["debug"] = debug
 
 
+def _stdin_bytes() -> bytes:
+    if sys.stdin is None or sys.stdin.closed:
+        raise Im2VecError("stdin is closed")
+    try:
+        return sys.stdin.buffer.read()
+    except (OSError, ValueError) as exc:
+        raise Im2VecError(f"stdin: cannot read ({getattr(exc, 'strerror', None) or exc})") from None
+
+
 def _read_input(path: str) -> bytes:
     if path == "-":
-        return sys.stdin.buffer.read()
+        return _stdin_bytes()
     from pathlib import Path
 
     try:
@@ -65,14 +74,36 @@ def _read_input(path: str) -> bytes:
         raise Im2VecError(f"{path}: no such file") from None
     except IsADirectoryError:
         raise Im2VecError(f"{path}: is a directory") from None
+    except OSError as exc:
+        raise Im2VecError(f"{path}: cannot read ({exc.strerror or exc})") from None
+
+
+def _write_stdout(raw: bytes) -> None:
+    """Write to stdout; a closed pipe or a full device is one ``Im2VecError`` line, and
+    stdout is then pointed at /dev/null so that Python's exit flush stays quiet."""
+    import os
+
+    try:
+        if sys.stdout is None:
+            raise OSError("stdout is closed")
+        sys.stdout.buffer.write(raw)
+        sys.stdout.buffer.flush()
+    except (OSError, ValueError) as exc:
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+            os.close(devnull)
+        except (OSError, ValueError, AttributeError):
+            pass
+        why = "closed (broken pipe)" if isinstance(exc, BrokenPipeError) else (getattr(exc, "strerror", None) or exc)
+        raise Im2VecError(f"stdout: cannot write ({why})") from None
 
 
 def _write_output(path: str, data: bytes | str) -> None:
     """Write to stdout for ``-``, else atomically; a failed write is one ``Im2VecError`` line."""
     raw = data.encode("utf-8") if isinstance(data, str) else data
     if path == "-":
-        sys.stdout.buffer.write(raw)
-        sys.stdout.buffer.flush()
+        _write_stdout(raw)
         return
     from .io import atomic_write
 
@@ -178,6 +209,9 @@ def train(data_dir, run_dir, val_dir, config_file, size, paths, latent, grouping
             bar["b"].update(e["step"] - bar["b"].n)
             if bar["b"].disable:
                 click.echo(f"step {e['step']} loss {e['loss']:.5f} img/s {e['img_per_s']:.0f}", err=True)
+        elif kind == "nonfinite":
+            click.echo(f"Warning: step {e['step']}: loss or gradient not finite, update skipped "
+                       f"({e['in_a_row']} in a row)", err=True)
         elif kind == "val":
             click.echo(f"step {e['step']}: val pyramid L2 {e['val_pyramid_l2']:.5f}, MSE {e['val_mse']:.5f}", err=True)
 
@@ -220,9 +254,12 @@ def _expand_inputs(inputs):
             from .errors import DataError
 
             try:
-                out += [(str(f), p) for f in list_images(p)]
+                found = list_images(p)
             except DataError as exc:
                 raise Im2VecError(str(exc)) from None
+            if not found:
+                raise Im2VecError(f"{p}: no images (.png, .jpg) in this folder")
+            out += [(str(f), p) for f in found]
         else:
             out.append((item, None))
     return out
@@ -242,33 +279,56 @@ def _output_for(item, root, output, suffix, single):
         dest = base / rel
     else:
         dest = base / (Path(item).stem + suffix)
-    dest.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        dest.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise Im2VecError(f"{dest.parent}: cannot create folder ({exc.strerror or exc})") from None
     return str(dest)
 
 
-def _batch(ctx, items, work):
-    """Run ``work(item, root)`` for each input; report bad files and exit 1 at the end."""
+def _batch(ctx, items, work, chunk: int = 1):
+    """Run ``work(group)`` over chunks of inputs, streaming: only one chunk is in memory.
+
+    ``work`` yields ``(item, error_or_None)`` per input; bad inputs are reported as they
+    come, the good ones finish, and the exit code is 1 if any failed.
+    """
     from .runtime import progress
 
     failed = 0
-    bar = progress(items, desc="files", unit="file", disable=None if len(items) > 1 else True)
-    for item, root in bar:
-        try:
-            work(item, root)
-        except Im2VecError as exc:
-            failed += 1
-            click.echo(f"Error: {exc}", err=True)
+    bar = progress(total=len(items), desc="files", unit="file", disable=None if len(items) > 1 else True)
+    for start in range(0, len(items), chunk):
+        for _item, exc in work(items[start : start + chunk]):
+            if exc is not None:
+                failed += 1
+                bar.clear()
+                click.echo(f"Error: {exc}", err=True)
+            bar.update(1)
+    bar.close()
     if failed:
         if len(items) > 1:
             click.echo(f"Error: {failed} of {len(items)} inputs failed", err=True)
         ctx.exit(1)
 
 
+def _each(work):
+    """Adapt a one-input ``work(item, root)`` to ``_batch``."""
+
+    def run(group):
+        for item, root in group:
+            try:
+                work(item, root)
+                yield item, None
+            except Im2VecError as exc:
+                yield item, exc
+
+    return run
+
+
 def _load_input_image(item):
     from .io import load_image
 
     if item == "-":
-        return load_image("<stdin>", sys.stdin.buffer.read())
+        return load_image("<stdin>", _stdin_bytes())
     return load_image(item)
 
 
@@ -296,13 +356,25 @@ def vectorize(ctx, inputs, output, segments, max_paths, model_name, device, seed
         raise click.UsageError("several inputs need -o DIR")
     model = _load_model(model_name, device, seed)
 
-    def work(item, root):
-        img = _load_input_image(item)
-        svg = to_svg(run(model, [img], segments=k, max_paths=max_paths)[0])
-        dest = _output_for(item, root, output, ".svg", single)
-        _write_output(dest, svg)
+    def work(group):
+        loaded = []
+        for item, root in group:
+            try:
+                loaded.append((item, root, _load_input_image(item)))
+            except Im2VecError as exc:
+                yield item, exc
+        vecs = run(model, [img for _, _, img in loaded], segments=k, max_paths=max_paths) if loaded else []
+        for (item, root, _), vec in zip(loaded, vecs):
+            try:
+                _write_output(_output_for(item, root, output, ".svg", single), to_svg(vec))
+                yield item, None
+            except Im2VecError as exc:
+                yield item, exc
 
-    _batch(ctx, items, work)
+    _batch(ctx, items, work, chunk=VECTORIZE_CHUNK)
+
+
+VECTORIZE_CHUNK = 32  # images per forward pass in batch mode (bounded memory, amortised model calls)
 
 
 def _segments(value):
@@ -357,7 +429,7 @@ def encode(ctx, inputs, output, fmt, model_name, device, seed):
                                      "latent": [round(v, 6) for v in z.tolist()]}))
 
     try:
-        _batch(ctx, items, work)
+        _batch(ctx, items, _each(work))
     finally:
         if fmt == "jsonl" and lines:
             _write_output(output, "\n".join(lines) + "\n")

@@ -15,3 +15,7 @@ class ModelError(Im2VecError):
 
 class DataError(Im2VecError):
     """A dataset folder is empty, malformed, or a source package is missing."""
+
+
+class TrainingError(Im2VecError):
+    """Training cannot go on (e.g. the loss stays non-finite)."""

@@ -16,7 +16,7 @@ import torch
 
 from .data.folder import fit_square
 from .model.vae import Decoded, Im2Vec
-from .svg import VectorImage, contour_d, from_tensors, rasterize_svg, to_svg
+from .svg import VectorImage, VectorShape, contour_d, from_tensors, rasterize_svg, to_svg
 
 MIN_AREA = 1e-4  # paths below this area (normalised units) are unused and not exported
 
@@ -70,15 +70,54 @@ def to_vector(dec: Decoded, i: int, place: Placement, *, max_paths: int | None =
                         fill_rule=dec.fill_rule)
 
 
+UNIFORM_TOL = 2 / 255  # an image whose pixels all lie within this of each other is one flat colour
+
+
+def uniform_color(image: torch.Tensor) -> tuple[float, float, float] | None:
+    """The colour of a flat ``(3, H, W)`` image, or ``None`` when it has any detail."""
+    lo, hi = image.amin(dim=(1, 2)), image.amax(dim=(1, 2))  # (3,)
+    if bool(((hi - lo) <= UNIFORM_TOL).all()):
+        return tuple(float(v) for v in image.mean(dim=(1, 2)).tolist())
+    return None
+
+
+def flat_vector(place: Placement, color: tuple[float, float, float]) -> VectorImage:
+    """A flat image as vectors: nothing on white, else one canvas-sized square in ``color``."""
+    w, h = place.width, place.height
+    if min(color) >= 1 - UNIFORM_TOL:
+        return VectorImage(float(w), float(h), [])
+    corners = np.array([[0, 0], [w, 0], [w, h], [0, h]], dtype=np.float64)
+    pts = []
+    for i in range(4):  # straight sides as cubics: controls at 1/3 and 2/3
+        a, b = corners[i], corners[(i + 1) % 4]
+        pts += [a, a + (b - a) / 3, a + 2 * (b - a) / 3]
+    return VectorImage(float(w), float(h), [VectorShape([np.stack(pts)], color, "nonzero")])
+
+
 @torch.no_grad()
 def vectorize(model: Im2Vec, images: list[torch.Tensor], *, segments: int | None = None,
               max_paths: int | None = None) -> list[VectorImage]:
-    """Amortised vectorisation (``z = mu``) of images ``(3, H_i, W_i)``."""
+    """Amortised vectorisation (``z = mu``) of images ``(3, H_i, W_i)``, in one batch.
+
+    Flat images (one colour, e.g. blank) skip the model: white gives an empty SVG, any
+    other colour one canvas-sized square.
+    """
     dev = next(model.parameters()).device
-    xs, places = zip(*(model_input(model, im) for im in images))
-    mu, _ = model.encode(torch.stack(xs).to(dev))
-    dec = model.decode(mu, segments)
-    return [to_vector(dec, i, p, max_paths=max_paths) for i, p in enumerate(places)]
+    out: list[VectorImage | None] = [None] * len(images)
+    todo = []
+    for i, im in enumerate(images):
+        col = uniform_color(im)
+        if col is None:
+            todo.append(i)
+        else:
+            out[i] = flat_vector(Placement(im.shape[2], im.shape[1]), col)
+    if todo:
+        xs, places = zip(*(model_input(model, images[i]) for i in todo))
+        mu, _ = model.encode(torch.stack(xs).to(dev))
+        dec = model.decode(mu, segments)
+        for j, (i, p) in enumerate(zip(todo, places)):
+            out[i] = to_vector(dec, j, p, max_paths=max_paths)
+    return out  # type: ignore[return-value]
 
 
 @torch.no_grad()

@@ -13,11 +13,12 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from PIL import Image, UnidentifiedImageError
+from PIL import Image, ImageOps
 
 from .errors import InputError
 
 MAX_PIXELS = 64_000_000  # larger images are refused (decompression bombs)
+MIN_SIDE = 4  # smaller images carry no shape to vectorize
 
 
 def atomic_write(path: str | os.PathLike, data: bytes | str, *, durable: bool = True) -> None:
@@ -34,6 +35,8 @@ def atomic_write(path: str | os.PathLike, data: bytes | str, *, durable: bool = 
                 f.flush()
                 os.fsync(f.fileno())
         os.replace(tmp, path)
+        if durable:
+            _fsync_dir(directory)  # make the rename itself survive a power cut
     except BaseException:
         try:
             os.unlink(tmp)
@@ -42,8 +45,25 @@ def atomic_write(path: str | os.PathLike, data: bytes | str, *, durable: bool = 
         raise
 
 
+def _fsync_dir(directory: Path) -> None:
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return  # not supported here (e.g. Windows): the data itself is already synced
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
 def open_image(data: bytes, name: str = "<image>") -> Image.Image:
-    """Decode image bytes with Pillow, turning every failure into a one-line ``InputError``."""
+    """Decode image bytes with Pillow, turning every failure into a one-line ``InputError``.
+
+    Animated images (APNG, GIF, WebP) give their first frame; EXIF orientation is applied.
+    Images smaller than ``MIN_SIDE`` or larger than ``MAX_PIXELS`` are refused.
+    """
     if not data:
         raise InputError(f"{name}: empty file")
     try:
@@ -51,27 +71,41 @@ def open_image(data: bytes, name: str = "<image>") -> Image.Image:
             warnings.simplefilter("error", Image.DecompressionBombWarning)
             img = Image.open(io.BytesIO(data))
             if img.width * img.height > MAX_PIXELS:
-                raise InputError(f"{name}: image too large ({img.width}x{img.height} pixels)")
-            img.load()
+                raise InputError(f"{name}: image too large ({img.width}x{img.height} pixels; "
+                                 f"at most {MAX_PIXELS // 1_000_000} megapixels)")
+            img.load()  # the first frame of an animation
+            img = ImageOps.exif_transpose(img)
     except InputError:
         raise
     except (Image.DecompressionBombError, Image.DecompressionBombWarning) as exc:
         raise InputError(f"{name}: image too large (decompression bomb): {exc}") from None
-    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as exc:
-        raise InputError(f"{name}: not a readable image ({exc})") from None
+    except MemoryError:
+        raise InputError(f"{name}: not enough memory to decode this image") from None
+    except Exception as exc:  # noqa: BLE001 - any decoder failure on arbitrary bytes is a bad file
+        raise InputError(f"{name}: not a readable image ({_one_line(exc)})") from None
+    if min(img.width, img.height) < MIN_SIDE:
+        raise InputError(f"{name}: image too small ({img.width}x{img.height} pixels; at least {MIN_SIDE} per side)")
     return img
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text[:200]
 
 
 def image_to_tensor(img: Image.Image) -> torch.Tensor:
     """Any Pillow mode -> ``(3, H, W)`` float in [0, 1], alpha composited onto white."""
-    if img.mode in ("I;16", "I;16B", "I;16L", "I"):
+    if img.mode in ("I;16", "I;16B", "I;16L", "I;16N", "I"):
         arr = np.asarray(img, dtype=np.float64)
         top = 65535.0 if arr.max() > 255 else 255.0
         g = torch.from_numpy(arr / top).float().clamp(0, 1)
         return g.unsqueeze(0).expand(3, -1, -1).contiguous()
     if img.mode == "F":
-        g = torch.from_numpy(np.asarray(img, dtype=np.float32)).clamp(0, 1)
+        arr = np.nan_to_num(np.asarray(img, dtype=np.float32), nan=1.0, posinf=1.0, neginf=0.0)
+        g = torch.from_numpy(arr).clamp(0, 1)
         return g.unsqueeze(0).expand(3, -1, -1).contiguous()
+    if img.mode in ("LAB", "HSV", "YCbCr"):
+        img = img.convert("RGB")
     rgba = img.convert("RGBA")
     arr = torch.from_numpy(np.asarray(rgba, dtype=np.float32) / 255.0)  # (H, W, 4)
     rgb, a = arr[..., :3], arr[..., 3:]
@@ -91,7 +125,13 @@ def load_image(path: str | os.PathLike, data: bytes | None = None) -> torch.Tens
             raise InputError(f"{name}: is a directory") from None
         except OSError as exc:
             raise InputError(f"{name}: cannot read ({exc.strerror})") from None
-    return image_to_tensor(open_image(data, name))
+    img = open_image(data, name)
+    try:
+        return image_to_tensor(img)
+    except MemoryError:
+        raise InputError(f"{name}: not enough memory to convert this image") from None
+    except Exception as exc:  # noqa: BLE001 - exotic modes Pillow cannot convert
+        raise InputError(f"{name}: unsupported image mode {img.mode} ({_one_line(exc)})") from None
 
 
 def tensor_to_png(img: torch.Tensor) -> bytes:

@@ -8,6 +8,7 @@ shared/STYLE.md; ``from_tensors`` / ``to_tensors`` convert.
 from __future__ import annotations
 
 import io
+import math
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -84,7 +85,7 @@ def to_svg(image: VectorImage, decimals: int = 2) -> str:
     return dwg.tostring()
 
 
-_TOKEN = re.compile(r"[MmCcLlZz]|[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+_TOKEN = re.compile(r"[A-Za-z]|[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 
 
 def parse_d(d: str) -> list[np.ndarray]:
@@ -92,6 +93,9 @@ def parse_d(d: str) -> list[np.ndarray]:
 
     Lines become cubics with controls at 1/3 and 2/3. Returns ``(3S, 2)`` arrays.
     """
+    junk = _TOKEN.sub(" ", d).replace(",", " ").strip()
+    if junk:
+        raise InputError(f"unexpected characters in path data: {junk[:20]!r}")
     toks = _TOKEN.findall(d)
     contours: list[np.ndarray] = []
     cur: list[list[float]] = []
@@ -102,9 +106,9 @@ def parse_d(d: str) -> list[np.ndarray]:
 
     def nums(k):
         nonlocal i
-        vals = [float(t) for t in toks[i : i + k]]
+        vals = [float(t) for t in toks[i : i + k] if not t.isalpha()]
         if len(vals) != k:
-            raise InputError("path data ends in the middle of a command")
+            raise InputError(f"path data: command {cmd!r} needs {k} more numbers")
         i += k
         return vals
 
@@ -170,29 +174,41 @@ def _parse_color(value: str | None) -> tuple[float, float, float]:
 
 
 def from_svg(text: str | bytes) -> VectorImage:
-    """Read an SVG of closed cubic paths (as written by ``to_svg``) into a ``VectorImage``."""
+    """Read an SVG of closed cubic paths (as written by ``to_svg``) into a ``VectorImage``.
+
+    Raises ``InputError`` (one line) on anything else: bad XML, a bad viewBox, relative or
+    unsupported path commands, open subpaths, unknown fill rules or colours.
+    """
     try:
         root = ElementTree.fromstring(text)
-    except ElementTree.ParseError as exc:
+    except (ElementTree.ParseError, ValueError) as exc:  # ValueError: e.g. NUL bytes, bad encodings
         raise InputError(f"not valid SVG/XML ({exc})") from None
+    if root.tag.rsplit("}", 1)[-1] != "svg":
+        raise InputError(f"the root element is <{root.tag.rsplit('}', 1)[-1]}>, not <svg>")
     vb = root.get("viewBox")
-    if vb:
-        x0, y0, w, h = (float(v) for v in vb.replace(",", " ").split())
-        if x0 != 0 or y0 != 0:
-            raise InputError("viewBox must start at 0 0")
-    else:
-        try:
+    try:
+        if vb:
+            x0, y0, w, h = (float(v) for v in vb.replace(",", " ").split())
+        else:
+            x0 = y0 = 0.0
             w, h = float(root.get("width", "")), float(root.get("height", ""))
-        except ValueError:
-            raise InputError("SVG has neither a viewBox nor numeric width/height") from None
+    except ValueError:
+        raise InputError("the SVG needs a viewBox of four numbers, or numeric width and height") from None
+    if x0 != 0 or y0 != 0:
+        raise InputError("viewBox must start at 0 0")
+    if not (math.isfinite(w) and math.isfinite(h) and w > 0 and h > 0):
+        raise InputError(f"the canvas must have a positive finite size, got {w:g} x {h:g}")
     shapes = []
     for el in root.iter():
         if el.tag.rsplit("}", 1)[-1] != "path":
             continue
         contours = parse_d(el.get("d", ""))
-        shapes.append(
-            VectorShape(contours, _parse_color(el.get("fill")), el.get("fill-rule", "nonzero"))
-        )
+        if any(not np.isfinite(c).all() for c in contours):
+            raise InputError("path data contains a non-finite number")
+        rule = el.get("fill-rule", "nonzero")
+        if rule not in ("nonzero", "evenodd"):
+            raise InputError(f"unsupported fill-rule {rule!r} (nonzero or evenodd)")
+        shapes.append(VectorShape(contours, _parse_color(el.get("fill")), rule))
     return VectorImage(w, h, shapes)
 
 

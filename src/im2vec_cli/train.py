@@ -25,10 +25,12 @@ import torch.distributed as dist
 from .checkpoint import _unwrap, load_checkpoint, save_checkpoint, save_pretrained
 from .config import ModelConfig, TrainConfig
 from .data.folder import load_folder, split_indices
-from .errors import DataError, Im2VecError
+from .errors import DataError, Im2VecError, TrainingError
 from .io import atomic_write
 from .model.vae import Im2Vec, kl_divergence
 from .raster import gaussian_pyramid, pyramid_l2, render_pyramid
+
+MAX_NONFINITE_IN_A_ROW = 20  # skipped steps before training stops with an error
 
 
 class Lookahead:
@@ -198,7 +200,7 @@ def train(
         train_x, val_x = images[:-n_val], images[-n_val:]
     if len(train_x) == 0:
         raise DataError("no training images left after the validation split")
-    val_x = val_x[:512]
+    val_x = val_x[:: max(1, len(val_x) // 512)][:512]  # spread over the folder (sorted by class or family)
     if epochs:
         train_cfg = dataclasses.replace(train_cfg, steps=max(1, round(epochs * len(train_x) / train_cfg.batch)))
     emit({"event": "data", "train": len(train_x), "val": len(val_x), "steps": train_cfg.steps})
@@ -255,6 +257,7 @@ def train(
 
     model.train()
     t_last, n_last = time.perf_counter(), 0
+    bad_run = 0  # consecutive steps skipped for a non-finite loss or gradient
     try:
         while step < train_cfg.steps:
             sch = schedule(step, train_cfg)
@@ -268,8 +271,22 @@ def train(
             opt.zero_grad()
             loss.backward()
             gnorm = torch.nn.utils.clip_grad_norm_(model.parameters(), train_cfg.grad_clip)
-            opt.step()
+            # gnorm is computed from the all-reduced gradients, so every DDP rank decides alike
+            finite = bool(torch.isfinite(gnorm)) and (world > 1 or bool(torch.isfinite(loss)))
             step += 1
+            if finite:
+                opt.step()
+                bad_run = 0
+            else:  # skip the update: the weights never see a NaN or inf
+                opt.zero_grad()
+                bad_run += 1
+                log({"event": "nonfinite", "step": step, "loss": loss.item(), "grad_norm": gnorm.item(),
+                     "in_a_row": bad_run, "time": time.time()})
+                if bad_run >= MAX_NONFINITE_IN_A_ROW:
+                    raise TrainingError(
+                        f"the loss or gradient was not finite for {bad_run} steps in a row (up to step {step}); "
+                        f"the last good checkpoint is {ckpt_path}; try a lower --lr"
+                    )
             n_last += len(x) * world
             if step % train_cfg.log_every == 0 or step == train_cfg.steps:
                 now = time.perf_counter()

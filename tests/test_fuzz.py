@@ -1,0 +1,127 @@
+"""Fuzzing the two parsers that read user files: the image loader and the SVG reader.
+
+Any exception other than ``InputError`` (our one-line error) fails. CI runs a short
+profile; ``make fuzz`` runs the long one (``HYPOTHESIS_PROFILE=long``).
+"""
+
+from __future__ import annotations
+
+import io
+import os
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from PIL import Image
+
+from im2vec_cli.errors import InputError
+from im2vec_cli.io import load_image
+from im2vec_cli.svg import from_svg, to_tensors
+
+settings.register_profile("ci", max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+settings.register_profile("long", max_examples=5000, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
+
+
+def _seed_images() -> list[bytes]:
+    rng = np.random.default_rng(0)
+    arr = (rng.random((12, 10, 3)) * 255).astype(np.uint8)
+    out = []
+    for mode, fmt, kw in [("RGB", "PNG", {}), ("L", "PNG", {}), ("RGBA", "PNG", {}), ("P", "GIF", {}),
+                          ("RGB", "JPEG", {"quality": 80}), ("1", "PNG", {}), ("CMYK", "JPEG", {}),
+                          ("RGB", "BMP", {}), ("RGB", "WEBP", {})]:
+        buf = io.BytesIO()
+        Image.fromarray(arr).convert(mode).save(buf, format=fmt, **kw)
+        out.append(buf.getvalue())
+    return out
+
+
+SEEDS = _seed_images()
+
+
+@st.composite
+def mutated_image(draw):
+    data = bytearray(draw(st.sampled_from(SEEDS)))
+    for _ in range(draw(st.integers(1, 6))):
+        op = draw(st.sampled_from(["flip", "truncate", "insert", "delete", "overwrite_int"]))
+        pos = draw(st.integers(0, max(0, len(data) - 1)))
+        if op == "flip" and data:
+            data[pos] ^= draw(st.integers(1, 255))
+        elif op == "truncate":
+            del data[pos:]
+        elif op == "insert":
+            data[pos:pos] = draw(st.binary(min_size=1, max_size=16))
+        elif op == "delete":
+            del data[pos : pos + draw(st.integers(1, 16))]
+        elif op == "overwrite_int":  # sizes and lengths live in 2- and 4-byte big/little-endian fields
+            data[pos : pos + 4] = draw(st.integers(0, 2**32 - 1)).to_bytes(4, draw(st.sampled_from(["big", "little"])))
+    return bytes(data)
+
+
+def _only_input_errors(fn, data):
+    try:
+        out = fn(data)
+    except InputError as exc:
+        assert "\n" not in str(exc)
+        return None
+    return out
+
+
+@given(st.one_of(st.binary(max_size=300), mutated_image()))
+def test_image_loader_raises_only_input_error(data):
+    img = _only_input_errors(lambda b: load_image("<fuzz>", b), data)
+    if img is not None:
+        assert img.dim() == 3 and img.shape[0] == 3
+        assert bool(((img >= 0) & (img <= 1)).all())
+
+
+SVG_SEED = (
+    '<svg xmlns="http://www.w3.org/2000/svg" width="20" height="20" viewBox="0 0 20 20">'
+    '<path d="M 2 2 C 5 1 9 1 12 2 C 14 6 14 10 12 14 C 8 15 4 15 2 14 Z M 5 5 C 6 5 7 5 8 5 C 8 6 8 7 8 8 '
+    'C 7 8 6 8 5 8 Z" fill="#102030" fill-rule="evenodd" stroke="none"/></svg>'
+)
+
+_TOKENS = ["M", "C", "L", "Z", "z", "m", "c", "H", "Q", "A", "1", "-2.5", "1e3", "1e400", "nan", "inf", ".", "-",
+           "0", "3.", ",", " "]
+
+
+@st.composite
+def mutated_svg(draw):
+    choice = draw(st.integers(0, 2))
+    if choice == 0:  # path data made of random tokens
+        d = " ".join(draw(st.lists(st.sampled_from(_TOKENS), max_size=40)))
+        vb = draw(st.sampled_from(["0 0 20 20", "0 0 0 0", "1 0 20 20", "0 0 -5 5", "0 0 nan 5", "0 0 20", "a b c d",
+                                   "0,0,20,20", "0 0 1e400 5"]))
+        rule = draw(st.sampled_from(["nonzero", "evenodd", "bogus", ""]))
+        fill = draw(st.sampled_from(["#000", "#123456", "red", "none", "#12345", "url(#x)"]))
+        return (f'<svg xmlns="http://www.w3.org/2000/svg" viewBox="{vb}"><path d="{d}" fill="{fill}" '
+                f'fill-rule="{rule}"/></svg>')
+    text = SVG_SEED
+    if choice == 1:  # character-level mutations of a valid file
+        chars = list(text)
+        for _ in range(draw(st.integers(1, 8))):
+            pos = draw(st.integers(0, len(chars) - 1))
+            chars[pos] = draw(st.characters(codec="utf-8"))
+        return "".join(chars)
+    cut = draw(st.integers(0, len(text)))  # truncation plus junk
+    return text[:cut] + draw(st.text(max_size=20))
+
+
+@given(st.one_of(mutated_svg(), st.text(max_size=200), st.binary(max_size=200)))
+@settings(suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+def test_svg_reader_raises_only_input_error(text):
+    def read(t):
+        im = from_svg(t)
+        if im.shapes and any(s.contours for s in im.shapes):
+            pts, cols, _ = to_tensors(im)
+            assert pts.shape[-1] == 2 and bool(np.isfinite(pts.numpy()).all())
+        return im
+
+    _only_input_errors(read, text)
+
+
+@pytest.mark.parametrize("seed", range(len(SEEDS)))
+def test_seed_images_load(seed):
+    """The fuzz seeds themselves are valid (so the mutations start from real files)."""
+    assert load_image("<seed>", SEEDS[seed]).shape == (3, 12, 10)

@@ -1,0 +1,569 @@
+"""Bad input, faults and determinism (issue "Hardening"). docs/RELIABILITY.md lists each case.
+
+Every case in ``CASES`` runs a real command on a crafted input and checks the documented
+outcome: ``error`` (exit 1, exactly one ``Error:`` line on stderr, no traceback, no output
+file and no temp file left), ``usage`` (exit 2), or ``ok`` / ``empty`` (exit 0 and a valid
+SVG, with no path for ``empty``).
+"""
+
+from __future__ import annotations
+
+import errno
+import io
+import json
+import os
+import subprocess
+import sys
+import zlib
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from PIL import Image
+
+from im2vec_cli.cli import cli
+from tests.helpers import TINY, check_svg, make_tiny_model, png
+
+EXE = [sys.executable, "-m", "im2vec_cli"]
+
+
+@pytest.fixture(scope="module")
+def model_dir(tmp_path_factory):
+    return make_tiny_model(tmp_path_factory.mktemp("m") / "tiny")
+
+
+def _chunk(kind: bytes, data: bytes) -> bytes:
+    return len(data).to_bytes(4, "big") + kind + data + zlib.crc32(kind + data).to_bytes(4, "big")
+
+
+def _png_bytes(w: int, h: int, row: bytes, bit_depth: int = 1, color_type: int = 0) -> bytes:
+    """A valid PNG built row by row with zlib (so huge images cost no memory here)."""
+    comp = zlib.compressobj(9)
+    idat = b"".join(comp.compress(b"\x00" + row) for _ in range(h)) + comp.flush()
+    ihdr = w.to_bytes(4, "big") + h.to_bytes(4, "big") + bytes([bit_depth, color_type, 0, 0, 0])
+    return b"\x89PNG\r\n\x1a\n" + _chunk(b"IHDR", ihdr) + _chunk(b"IDAT", idat) + _chunk(b"IEND", b"")
+
+
+def _save(img: Image.Image, path: Path, **kw) -> Path:
+    img.save(path, **kw)
+    return path
+
+
+def _glyph_like(size=48) -> Image.Image:
+    arr = np.full((size, size), 255, np.uint8)
+    arr[size // 4 : 3 * size // 4, size // 3 : 2 * size // 3] = 0
+    return Image.fromarray(arr)
+
+
+# ---- input builders: each returns (args after the model options, stdin bytes or None)
+
+
+def in_missing(d, m):
+    return ["vectorize", str(d / "nope.png"), "-o", str(d / "out.svg")], None
+
+
+def in_zero_bytes(d, m):
+    (d / "x.png").write_bytes(b"")
+    return ["vectorize", str(d / "x.png"), "-o", str(d / "out.svg")], None
+
+
+def in_text_named_png(d, m):
+    (d / "x.png").write_text("this is not an image\n")
+    return ["vectorize", str(d / "x.png"), "-o", str(d / "out.svg")], None
+
+
+def in_truncated_png(d, m):
+    (d / "x.png").write_bytes(Path(png(d / "full.png", 40, 40)).read_bytes()[:70])
+    return ["vectorize", str(d / "x.png"), "-o", str(d / "out.svg")], None
+
+
+def in_bad_crc(d, m):
+    raw = bytearray(Path(png(d / "full.png", 40, 40)).read_bytes())
+    raw[29] ^= 0xFF  # the IHDR chunk's CRC (8 signature + 8 header + 13 data = byte 29)
+    (d / "x.png").write_bytes(bytes(raw))
+    return ["vectorize", str(d / "x.png"), "-o", str(d / "out.svg")], None
+
+
+def in_png_signature_then_junk(d, m):
+    (d / "x.png").write_bytes(b"\x89PNG\r\n\x1a\n" + os.urandom(200))
+    return ["vectorize", str(d / "x.png"), "-o", str(d / "out.svg")], None
+
+
+def in_corrupt_idat(d, m):
+    (d / "x.png").write_bytes(_png_bytes(40, 40, b"\xff" * 5)[:33] + _chunk(b"IDAT", b"\x78\x9c" + os.urandom(40))
+                              + _chunk(b"IEND", b""))
+    return ["vectorize", str(d / "x.png"), "-o", str(d / "out.svg")], None
+
+
+def in_one_pixel(d, m):
+    _save(Image.new("L", (1, 1), 0), d / "x.png")
+    return ["vectorize", str(d / "x.png"), "-o", str(d / "out.svg")], None
+
+
+def in_sliver(d, m):
+    _save(Image.new("L", (2, 500), 0), d / "x.png")
+    return ["vectorize", str(d / "x.png"), "-o", str(d / "out.svg")], None
+
+
+def in_20000_square(d, m):
+    (d / "x.png").write_bytes(_png_bytes(20000, 20000, b"\xff" * 2500))  # a real, complete 1-bit image
+    return ["vectorize", str(d / "x.png"), "-o", str(d / "out.svg")], None
+
+
+def in_decompression_bomb(d, m):
+    # a header claiming 100000 x 100000 pixels in front of a few bytes of data
+    ihdr = (100000).to_bytes(4, "big") * 2 + bytes([8, 0, 0, 0, 0])
+    (d / "x.png").write_bytes(b"\x89PNG\r\n\x1a\n" + _chunk(b"IHDR", ihdr) + _chunk(b"IDAT", zlib.compress(b"\0" * 99))
+                              + _chunk(b"IEND", b""))
+    return ["vectorize", str(d / "x.png"), "-o", str(d / "out.svg")], None
+
+
+def in_gif_bomb(d, m):
+    # GIF logical screen of 65535 x 65535 with a tiny frame
+    gif = io.BytesIO()
+    Image.new("P", (8, 8)).save(gif, format="GIF")
+    raw = bytearray(gif.getvalue())
+    raw[6:10] = (65535).to_bytes(2, "little") * 2
+    (d / "x.gif").write_bytes(bytes(raw))
+    return ["vectorize", str(d / "x.gif"), "-o", str(d / "out.svg")], None
+
+
+def in_truncated_jpg(d, m):
+    buf = io.BytesIO()
+    _glyph_like().convert("RGB").save(buf, format="JPEG")
+    (d / "x.jpg").write_bytes(buf.getvalue()[:200])
+    return ["vectorize", str(d / "x.jpg"), "-o", str(d / "out.svg")], None
+
+
+def in_broken_symlink(d, m):
+    os.symlink(d / "gone.png", d / "x.png")
+    return ["vectorize", str(d / "x.png"), "-o", str(d / "out.svg")], None
+
+
+def in_empty_folder(d, m):
+    (d / "in").mkdir()
+    (d / "in" / "notes.txt").write_text("no images here")
+    return ["vectorize", str(d / "in"), "-o", str(d / "outdir")], None
+
+
+def in_16bit_gray(d, m):
+    arr = (np.asarray(_glyph_like(), np.uint16) * 257).astype(np.uint16)
+    img = Image.fromarray(arr)
+    assert img.mode == "I;16"
+    _save(img, d / "x.png")
+    return ["vectorize", str(d / "x.png"), "-o", str(d / "out.svg")], None
+
+
+def in_palette_transparency(d, m):
+    img = _glyph_like().convert("P")
+    img.info["transparency"] = 255  # white (index 255 in the grey palette) is transparent
+    _save(img, d / "x.png", transparency=255)
+    return ["vectorize", str(d / "x.png"), "-o", str(d / "out.svg")], None
+
+
+def in_cmyk_jpg(d, m):
+    _save(_glyph_like().convert("CMYK"), d / "x.jpg", format="JPEG")
+    return ["vectorize", str(d / "x.jpg"), "-o", str(d / "out.svg")], None
+
+
+def in_animated_gif(d, m):
+    frames = [_glyph_like(), _glyph_like().transpose(Image.Transpose.ROTATE_90)]
+    frames[0].save(d / "x.gif", save_all=True, append_images=frames[1:], duration=100, loop=0)
+    return ["vectorize", str(d / "x.gif"), "-o", str(d / "out.svg")], None
+
+
+def in_animated_png(d, m):
+    frames = [_glyph_like().convert("RGB"), Image.new("RGB", (48, 48), "black")]
+    frames[0].save(d / "x.png", save_all=True, append_images=frames[1:], duration=100)
+    return ["vectorize", str(d / "x.png"), "-o", str(d / "out.svg")], None
+
+
+def in_exif_rotated_jpg(d, m):
+    img = Image.new("RGB", (60, 30), "white")
+    exif = Image.Exif()
+    exif[0x0112] = 6  # orientation: rotate 90 degrees to display -> 30 x 60
+    img.save(d / "x.jpg", exif=exif)
+    return ["vectorize", str(d / "x.jpg"), "-o", str(d / "out.svg")], None
+
+
+def in_all_white(d, m):
+    _save(Image.new("RGB", (50, 40), "white"), d / "x.png")
+    return ["vectorize", str(d / "x.png"), "-o", str(d / "out.svg")], None
+
+
+def in_fully_transparent(d, m):
+    _save(Image.new("RGBA", (50, 40), (10, 20, 30, 0)), d / "x.png")
+    return ["vectorize", str(d / "x.png"), "-o", str(d / "out.svg")], None
+
+
+def in_all_black(d, m):
+    _save(Image.new("L", (50, 40), 0), d / "x.png")
+    return ["vectorize", str(d / "x.png"), "-o", str(d / "out.svg")], None
+
+
+def in_stdin_empty(d, m):
+    return ["vectorize", "-", "-o", str(d / "out.svg")], b""
+
+
+def in_stdin_junk(d, m):
+    return ["vectorize", "-", "-o", str(d / "out.svg")], b"GIF89a" + b"\0" * 20
+
+
+def in_unknown_model(d, m):
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--model", "no-such-model"], None
+
+
+def _model_copy(d, m):
+    dst = d / "model"
+    dst.mkdir()
+    for f in Path(m).iterdir():
+        (dst / f.name).write_bytes(f.read_bytes())
+    return dst
+
+
+def in_model_missing_weights(d, m):
+    dst = _model_copy(d, m)
+    (dst / "model.safetensors").unlink()
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--model", str(dst)], None
+
+
+def in_model_truncated_weights(d, m):
+    dst = _model_copy(d, m)
+    w = dst / "model.safetensors"
+    w.write_bytes(w.read_bytes()[: w.stat().st_size // 2])
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--model", str(dst)], None
+
+
+def in_model_nan_weights(d, m):
+    from safetensors.torch import load_file, save_file
+
+    dst = _model_copy(d, m)
+    state = load_file(str(dst / "model.safetensors"))
+    key = sorted(k for k, v in state.items() if v.is_floating_point())[0]
+    state[key] = state[key].clone().fill_(float("nan"))
+    save_file(state, str(dst / "model.safetensors"))
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--model", str(dst)], None
+
+
+def in_model_config_wrong_version(d, m):
+    dst = _model_copy(d, m)
+    cfg = json.loads((dst / "config.json").read_text())
+    cfg["format_version"] = 99
+    (dst / "config.json").write_text(json.dumps(cfg))
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--model", str(dst)], None
+
+
+def in_model_config_not_json(d, m):
+    dst = _model_copy(d, m)
+    (dst / "config.json").write_text("{ not json")
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--model", str(dst)], None
+
+
+def in_model_config_mismatch(d, m):
+    dst = _model_copy(d, m)
+    cfg = json.loads((dst / "config.json").read_text())
+    cfg["latent"] = TINY.latent * 2  # the weights were trained with another latent size
+    (dst / "config.json").write_text(json.dumps(cfg))
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--model", str(dst)], None
+
+
+def in_latent_nan(d, m):
+    np.save(d / "z.npy", np.full(TINY.latent, np.nan, np.float32))
+    return ["interpolate", png(d / "a.png"), str(d / "z.npy"), "-o", str(d / "outdir")], None
+
+
+def in_latent_wrong_size(d, m):
+    np.save(d / "z.npy", np.zeros(TINY.latent + 3, np.float32))
+    return ["interpolate", png(d / "a.png"), str(d / "z.npy"), "-o", str(d / "outdir")], None
+
+
+def in_latent_pickle(d, m):
+    np.save(d / "z.npy", np.array([{"evil": 1}], dtype=object), allow_pickle=True)
+    return ["interpolate", png(d / "a.png"), str(d / "z.npy"), "-o", str(d / "outdir")], None
+
+
+def in_latent_json_garbage(d, m):
+    (d / "z.json").write_text('{"latent": "abc"}\n')
+    return ["interpolate", png(d / "a.png"), str(d / "z.json"), "-o", str(d / "outdir")], None
+
+
+def in_output_parent_missing(d, m):
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "no" / "such" / "dir" / "out.svg")], None
+
+
+def in_output_is_directory(d, m):
+    (d / "out.png").mkdir()
+    (d / "x.svg").write_text('<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">'
+                             '<path d="M 1 1 L 9 1 L 9 9 Z"/></svg>')
+    return ["render", str(d / "x.svg"), "-o", str(d / "out.png")], None
+
+
+def in_render_not_xml(d, m):
+    (d / "x.svg").write_text("<svg <<<")
+    return ["render", str(d / "x.svg"), "-o", str(d / "out.png")], None
+
+
+def in_render_relative_commands(d, m):
+    (d / "x.svg").write_text('<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">'
+                             '<path d="m 1 1 l 5 0 l 0 5 z"/></svg>')
+    return ["render", str(d / "x.svg"), "-o", str(d / "out.png")], None
+
+
+def in_render_open_path(d, m):
+    (d / "x.svg").write_text('<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">'
+                             '<path d="M 1 1 C 2 2 3 3 4 4"/></svg>')
+    return ["render", str(d / "x.svg"), "-o", str(d / "out.png")], None
+
+
+def in_render_bad_viewbox(d, m):
+    (d / "x.svg").write_text('<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 ten 10">'
+                             '<path d="M 1 1 L 9 1 L 9 9 Z"/></svg>')
+    return ["render", str(d / "x.svg"), "-o", str(d / "out.png")], None
+
+
+def in_unknown_option(d, m):
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--frobnicate"], None
+
+
+def in_segments_zero(d, m):
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--segments", "0"], None
+
+
+def in_folder_to_stdout(d, m):
+    (d / "in").mkdir()
+    png(d / "in" / "a.png")
+    return ["vectorize", str(d / "in"), "-o", "-"], None
+
+
+def in_unknown_device(d, m):
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--device", "tpu:7"], None
+
+
+def in_sample_zero(d, m):
+    return ["sample", "--n", "0", "-o", str(d / "outdir")], None
+
+
+# name -> (builder, expected outcome, whether the command takes --model)
+CASES = {
+    "missing file": (in_missing, "error"),
+    "zero-byte file": (in_zero_bytes, "error"),
+    "text file named .png": (in_text_named_png, "error"),
+    "truncated PNG": (in_truncated_png, "error"),
+    "corrupt chunk CRC": (in_bad_crc, "error"),
+    "PNG signature then junk": (in_png_signature_then_junk, "error"),
+    "corrupt compressed data": (in_corrupt_idat, "error"),
+    "1x1 image": (in_one_pixel, "error"),
+    "2x500 sliver": (in_sliver, "error"),
+    "20000x20000 image": (in_20000_square, "error"),
+    "decompression bomb (PNG)": (in_decompression_bomb, "error"),
+    "decompression bomb (GIF screen)": (in_gif_bomb, "error"),
+    "truncated JPG": (in_truncated_jpg, "error"),
+    "broken symlink": (in_broken_symlink, "error"),
+    "folder without images": (in_empty_folder, "error"),
+    "16-bit grayscale": (in_16bit_gray, "ok"),
+    "palette with transparency": (in_palette_transparency, "ok"),
+    "CMYK JPG": (in_cmyk_jpg, "ok"),
+    "animated GIF": (in_animated_gif, "ok"),
+    "animated PNG": (in_animated_png, "ok"),
+    "EXIF-rotated JPG": (in_exif_rotated_jpg, "empty"),
+    "all-white": (in_all_white, "empty"),
+    "fully transparent": (in_fully_transparent, "empty"),
+    "all-black": (in_all_black, "ok"),
+    "stdin empty": (in_stdin_empty, "error"),
+    "stdin not an image": (in_stdin_junk, "error"),
+    "unknown model name": (in_unknown_model, "error"),
+    "model: missing weights": (in_model_missing_weights, "error"),
+    "model: truncated weights": (in_model_truncated_weights, "error"),
+    "model: NaN weights": (in_model_nan_weights, "error"),
+    "model: config of another version": (in_model_config_wrong_version, "error"),
+    "model: config not JSON": (in_model_config_not_json, "error"),
+    "model: config does not match weights": (in_model_config_mismatch, "error"),
+    "latent with NaN": (in_latent_nan, "error"),
+    "latent of the wrong size": (in_latent_wrong_size, "error"),
+    "latent .npy holding a pickle": (in_latent_pickle, "error"),
+    "latent JSON not numbers": (in_latent_json_garbage, "error"),
+    "output folder missing": (in_output_parent_missing, "error"),
+    "output path is a directory": (in_output_is_directory, "error"),
+    "SVG: not XML": (in_render_not_xml, "error"),
+    "SVG: relative commands": (in_render_relative_commands, "error"),
+    "SVG: open path": (in_render_open_path, "error"),
+    "SVG: bad viewBox": (in_render_bad_viewbox, "error"),
+    "unknown option": (in_unknown_option, "usage"),
+    "--segments 0": (in_segments_zero, "usage"),
+    "folder to stdout": (in_folder_to_stdout, "usage"),
+    "unknown device": (in_unknown_device, "error"),
+    "sample --n 0": (in_sample_zero, "usage"),
+}
+
+
+def _invoke(args, stdin, model_dir):
+    if args[0] != "render" and "--model" not in args:
+        args = args + ["--model", model_dir]
+    return CliRunner().invoke(cli, args, input=stdin)
+
+
+def _no_output(d: Path):
+    leftovers = [p.name for p in d.rglob("*") if p.name.startswith(("out", ".out", ".x")) and p.is_file()]
+    assert not leftovers, f"partial output left behind: {leftovers}"
+
+
+def _one_error_line(stderr: str):
+    lines = stderr.strip().splitlines()
+    assert "Traceback" not in stderr
+    assert sum(line.startswith("Error:") for line in lines) == 1, stderr
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_bad_input_table(tmp_path, model_dir, name):
+    build, expect = CASES[name]
+    d = tmp_path / "case"
+    d.mkdir()
+    args, stdin = build(d, model_dir)
+    res = _invoke(args, stdin, model_dir)
+    assert res.exception is None or isinstance(res.exception, SystemExit), repr(res.exception)
+    if expect == "error":
+        assert res.exit_code == 1, (res.exit_code, res.output)
+        assert len(res.stderr.strip().splitlines()) == 1, res.stderr
+        _one_error_line(res.stderr)
+        _no_output(d)
+    elif expect == "usage":
+        assert res.exit_code == 2, (res.exit_code, res.output)
+        _one_error_line(res.stderr)
+        _no_output(d)
+    else:
+        assert res.exit_code == 0, res.output
+        svg = (d / "out.svg").read_text()
+        src = next(p for p in d.iterdir() if p.name.startswith("x."))
+        with Image.open(src) as im:
+            from PIL import ImageOps
+
+            w, h = ImageOps.exif_transpose(im).size
+        paths = check_svg(svg, w, h)
+        assert (len(paths) == 0) == (expect == "empty"), f"{len(paths)} paths"
+
+
+def test_all_black_is_one_canvas_square(tmp_path, model_dir):
+    args, _ = in_all_black(tmp_path, model_dir)
+    assert _invoke(args, None, model_dir).exit_code == 0
+    from im2vec_cli.svg import rasterize_svg
+
+    img = rasterize_svg((tmp_path / "out.svg").read_text(), 50, 40)
+    assert img.max() < 0.01  # every pixel black, as in the input
+
+
+def test_there_are_at_least_30_kinds():
+    assert len(CASES) >= 30
+
+
+def test_read_only_output_folder(tmp_path, model_dir, monkeypatch):
+    src = png(tmp_path / "a.png")
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o555)
+    if os.geteuid() == 0:  # root ignores permissions: make creating the temp file fail as it would
+        import tempfile
+
+        def denied(*a, **k):
+            raise PermissionError(errno.EACCES, "Permission denied", str(ro))
+
+        monkeypatch.setattr(tempfile, "mkstemp", denied)
+    res = CliRunner().invoke(cli, ["vectorize", src, "-o", str(ro / "out.svg"), "--model", model_dir])
+    ro.chmod(0o755)
+    assert res.exit_code == 1 and res.stderr.startswith("Error:") and len(res.stderr.splitlines()) == 1
+    assert list(ro.iterdir()) == []
+
+
+def test_disk_full_leaves_nothing(tmp_path, model_dir, monkeypatch):
+    """A write that fails half-way (ENOSPC at fsync) leaves neither the target nor a temp file."""
+    src = png(tmp_path / "a.png")
+    out = tmp_path / "o"
+    out.mkdir()
+
+    def full(fd):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(os, "fsync", full)
+    res = CliRunner().invoke(cli, ["vectorize", src, "-o", str(out / "a.svg"), "--model", model_dir])
+    assert res.exit_code == 1 and "No space left" in res.stderr and len(res.stderr.splitlines()) == 1
+    assert list(out.iterdir()) == []
+
+
+def test_real_processes_stdin_closed_and_stdout_full(tmp_path, model_dir):
+    """Real subprocesses: stdin closed, stdout on a full device, an unknown option."""
+    src = png(tmp_path / "a.png", 32, 32)
+    cmd = " ".join(EXE) + f" vectorize - --model {model_dir}"
+    r = subprocess.run(["bash", "-c", f"exec 0<&-; {cmd}"], capture_output=True, text=True)
+    assert r.returncode == 1 and r.stderr.startswith("Error: stdin") and r.stderr.count("\n") == 1, r.stderr
+    if os.path.exists("/dev/full"):
+        r = subprocess.run(["bash", "-c", f"{cmd} < {src} > /dev/full"], capture_output=True, text=True)
+        assert r.returncode == 1 and "No space left" in r.stderr and r.stderr.count("\n") == 1, r.stderr
+    r = subprocess.run(EXE + ["vectorize", src, "--nope"], capture_output=True, text=True)
+    assert r.returncode == 2 and "Traceback" not in r.stderr and "No such option" in r.stderr
+
+
+def test_batch_of_1000_with_5_percent_bad(tmp_path, model_dir):
+    """Every good file is written, every bad one is listed, exit 1; images are streamed."""
+    d = tmp_path / "in"
+    d.mkdir()
+    good = _glyph_like(32)
+    bad = set(range(0, 1000, 20))  # 50 bad files
+    for i in range(1000):
+        p = d / f"g{i:04d}.png"
+        if i in bad:
+            p.write_bytes(b"\x89PNG broken" if i % 40 else b"")
+        else:
+            good.save(p)
+    res = CliRunner().invoke(cli, ["vectorize", str(d), "-o", str(tmp_path / "out"), "--model", model_dir])
+    assert res.exit_code == 1
+    written = sorted(p.stem for p in (tmp_path / "out").glob("*.svg"))
+    assert written == [f"g{i:04d}" for i in range(1000) if i not in bad]
+    errors = [line for line in res.stderr.splitlines() if line.startswith("Error:")]
+    assert len(errors) == 51 and errors[-1] == "Error: 50 of 1000 inputs failed"
+    assert {line.split(":")[1].strip().rsplit("/", 1)[-1] for line in errors[:-1]} == {
+        f"g{i:04d}.png" for i in bad}
+
+
+def test_batch_streams_in_chunks(tmp_path, model_dir, monkeypatch):
+    """At most one chunk of decoded images is alive at any time."""
+    import im2vec_cli.cli as cli_mod
+    import im2vec_cli.infer as infer
+
+    d = tmp_path / "in"
+    d.mkdir()
+    for i in range(70):
+        _glyph_like(32).save(d / f"g{i:03d}.png")
+    sizes = []
+    real = infer.vectorize
+    monkeypatch.setattr(infer, "vectorize", lambda model, images, **kw: sizes.append(len(images)) or real(
+        model, images, **kw))
+    res = CliRunner().invoke(cli, ["vectorize", str(d), "-o", str(tmp_path / "out"), "--model", model_dir])
+    assert res.exit_code == 0 and sum(sizes) == 70 and max(sizes) == cli_mod.VECTORIZE_CHUNK
+
+
+def test_determinism_byte_identical(tmp_path, model_dir):
+    """Same input, model and seed: byte-identical SVGs from separate processes."""
+    src = png(tmp_path / "a.png", 37, 29)
+    outs = []
+    for i in range(2):
+        out = tmp_path / f"o{i}.svg"
+        r = subprocess.run(EXE + ["vectorize", src, "-o", str(out), "--model", model_dir, "--seed", "3"],
+                           capture_output=True)
+        assert r.returncode == 0, r.stderr
+        outs.append(out.read_bytes())
+    assert outs[0] == outs[1]
+    samples = []
+    for i in range(2):
+        r = subprocess.run(EXE + ["sample", "--n", "3", "-o", str(tmp_path / f"s{i}"), "--model", model_dir,
+                                  "--seed", "5"], capture_output=True)
+        assert r.returncode == 0, r.stderr
+        samples.append([p.read_bytes() for p in sorted((tmp_path / f"s{i}").glob("*.svg"))])
+    assert samples[0] == samples[1]
+
+
+def test_reliability_doc_lists_every_case():
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "RELIABILITY.md").read_text()
+    rows = {line.split("|")[1].strip(): line.split("|")[2].strip() for line in doc.splitlines()
+            if line.startswith("| ") and line.count("|") >= 4}
+    for name, (_, expect) in CASES.items():
+        assert rows.get(name) == expect, name
