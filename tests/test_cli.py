@@ -149,3 +149,15 @@ def test_subprocess_pipeline(tmp_path, model_dir):
     check_svg(r.stdout.decode(), 32, 32)
     r = subprocess.run(exe + ["vectorize", "-", "--model", model_dir], input=b"junk", capture_output=True)
     assert r.returncode == 1 and r.stdout == b"" and r.stderr.decode().count("\n") == 1
+
+
+def test_vectorize_refine_flag(tmp_path, model_dir):
+    from im2vec_cli.raster._compile import set_compile
+
+    src = png(tmp_path / "a.png", 40, 24)
+    try:
+        res = run(["vectorize", src, "-o", str(tmp_path / "a.svg"), "--model", model_dir, "--refine"])
+    finally:
+        set_compile(None)
+    assert res.exit_code == 0, res.output
+    check_svg((tmp_path / "a.svg").read_text(), 40, 24)

@@ -87,13 +87,14 @@ def from_pretrained(name_or_dir: str | os.PathLike = DEFAULT_MODEL, device: str 
     except ValueError as exc:
         raise ModelError(f"{folder}: bad config ({exc})") from None
     ref = model.state_dict()
+    state = {k: v.float() if v.is_floating_point() else v for k, v in state.items()}  # fp16 storage -> fp32
     for k, v in state.items():
         if k in ref and v.shape != ref[k].shape:
             raise ModelError(f"{weights}: {k} has shape {tuple(v.shape)}, config expects {tuple(ref[k].shape)}")
         if v.is_floating_point() and not torch.isfinite(v).all():
             raise ModelError(f"{weights}: {k} contains NaN or infinite values")
     try:
-        model.load_state_dict({k: v.float() if v.is_floating_point() else v for k, v in state.items()}, strict=True)
+        model.load_state_dict(state, strict=True)
     except RuntimeError as exc:
         first = str(exc).splitlines()[1].strip() if len(str(exc).splitlines()) > 1 else str(exc)
         raise ModelError(f"{weights}: weights do not match the config ({first})") from None

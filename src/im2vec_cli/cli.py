@@ -338,16 +338,30 @@ def _load_input_image(item):
               help="SVG file or - for one input; a folder for several inputs or a folder input.")
 @click.option("--segments", default=None, help="Cubic segments per path (default: the model's).")
 @click.option("--paths", "max_paths", type=click.IntRange(1), default=None, help="Keep at most N paths (the largest).")
+@click.option("--refine", is_flag=True,
+              help="Fit the paths to each input by gradient descent through the renderer (slower, more exact).")
 @_model_options
 @click.pass_context
-def vectorize(ctx, inputs, output, segments, max_paths, model_name, device, seed):
+def vectorize(ctx, inputs, output, segments, max_paths, refine, model_name, device, seed):
     """Vectorize images (PNG/JPG, any size) into SVGs of closed cubic paths.
 
     The SVG's viewBox is the input's pixel grid, so it overlays the input exactly.
     `-` reads one image from stdin; with -o - the SVG goes to stdout.
     """
-    from .infer import vectorize as run
+    from .infer import vectorize as amortised
     from .svg import to_svg
+
+    if refine:
+        import os
+
+        from .raster._compile import set_compile
+        from .refine import refine as fit
+
+        if "IM2VEC_COMPILE" not in os.environ:
+            set_compile(False)  # per-image shapes: compiling would cost more than it saves
+        run = lambda model, imgs, **kw: [fit(model, im, **kw)[0] for im in imgs]  # noqa: E731
+    else:
+        run = amortised
 
     k = _segments(segments)
     items = _expand_inputs(inputs)

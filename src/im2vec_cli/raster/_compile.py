@@ -18,11 +18,25 @@ import torch.fx.experimental._config as _fx_config
 # forces a recompile when they later differ; we never rely on such equalities.
 _fx_config.use_duck_shape = False
 _broken = False
+_override: bool | None = None
+
+
+def set_compile(enabled: bool | None) -> None:
+    """Force compilation on or off for this process (``None``: back to ``IM2VEC_COMPILE``).
+
+    One-image commands turn it off: a compile costs tens of seconds on CPU, far more than it saves.
+    """
+    global _override
+    _override = enabled
 
 
 def compile_enabled() -> bool:
-    """Whether hot functions go through ``torch.compile`` (env ``IM2VEC_COMPILE``, default on)."""
-    return not _broken and os.environ.get("IM2VEC_COMPILE", "1").lower() not in ("0", "false", "no", "off")
+    """Whether hot functions go through ``torch.compile`` (``set_compile``, else env ``IM2VEC_COMPILE``, default on)."""
+    if _broken:
+        return False
+    if _override is not None:
+        return _override
+    return os.environ.get("IM2VEC_COMPILE", "1").lower() not in ("0", "false", "no", "off")
 
 
 def maybe_compile(fn: Callable) -> Callable:
