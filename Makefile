@@ -34,7 +34,12 @@ bench: install
 demo: install
 	@mkdir -p out/demo
 	@if [ -d models/fonts ]; then \
-	  .venv/bin/im2vec vectorize examples/*.png -o out/demo && echo "SVGs written to out/demo/"; \
+	  .venv/bin/im2vec vectorize examples/*.png -o out/demo && \
+	  for m in mnist:digit emoji:emoji icons:icon; do \
+	    name=$${m%%:*}; ex=$${m##*:}; \
+	    if [ -d models/$$name ]; then mkdir -p out/demo/$$name && .venv/bin/im2vec vectorize examples/$${ex}_*.png -o out/demo/$$name --model $$name; fi; \
+	  done; \
+	  echo "SVGs written to out/demo/ (the default fonts model; out/demo/<model>/ with the matching model where one ships)"; \
 	else \
 	  $(PY) examples/make_example_svg.py out/demo/example.svg && \
 	  .venv/bin/im2vec render out/demo/example.svg -o out/demo/example.png --scale 2 && \

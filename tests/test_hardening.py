@@ -567,3 +567,15 @@ def test_reliability_doc_lists_every_case():
             if line.startswith("| ") and line.count("|") >= 4}
     for name, (_, expect) in CASES.items():
         assert rows.get(name) == expect, name
+
+
+def test_outputs_get_the_usual_file_mode(tmp_path):
+    """Atomic writes go through mkstemp (mode 0600); the final file follows the umask."""
+    from im2vec_cli.io import atomic_write
+
+    old = os.umask(0o022)
+    try:
+        atomic_write(tmp_path / "a.svg", "<svg/>")
+    finally:
+        os.umask(old)
+    assert (tmp_path / "a.svg").stat().st_mode & 0o777 == 0o644

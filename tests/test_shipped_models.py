@@ -19,11 +19,26 @@ def test_shipped_model_loads(name):
     assert m.config.image_size > 0
 
 
-@pytest.mark.skipif("fonts" not in MODELS, reason="no shipped fonts model")
-def test_fonts_quality_on_test_split_subset():
-    # 64 glyphs of test-split families (never trained on), copied from the dataset build;
-    # the card's metrics.json records the figure measured on exactly these files.
-    card = json.loads((REPO_MODELS / "fonts" / "metrics.json").read_text())
-    res = reconstruction_l2(from_pretrained("fonts"), sorted(ASSETS.glob("*.png")))
-    assert res["images"] == 64
+def _with_assets():
+    out = []
+    for name in MODELS:
+        card = json.loads((REPO_MODELS / name / "metrics.json").read_text()) if (
+            REPO_MODELS / name / "metrics.json").is_file() else {}
+        if "assets_subset_recon_l2" in card:
+            out.append(name)
+    return out
+
+
+@pytest.mark.parametrize("name", _with_assets())
+def test_quality_on_test_split_subset(name):
+    # 64 test-split images (never trained on) copied into tests/assets/<name>_test; the
+    # card's metrics.json records the figure measured on exactly these files.
+    card = json.loads((REPO_MODELS / name / "metrics.json").read_text())
+    files = sorted((ASSETS.parent / f"{name}_test").glob("*.png"))
+    res = reconstruction_l2(from_pretrained(name), files)
+    assert res["images"] == card["assets_subset_images"] == len(files)
     assert res["recon_l2"] <= card["assets_subset_recon_l2"] * 1.05 + 1e-3, res
+
+
+def test_default_model_has_a_quality_check():
+    assert "fonts" in _with_assets()

@@ -29,6 +29,7 @@ def atomic_write(path: str | os.PathLike, data: bytes | str, *, durable: bool = 
     directory = path.parent if str(path.parent) else Path(".")
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
     try:
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600 files; outputs get the usual mode
         with os.fdopen(fd, "wb") as f:
             f.write(raw)
             if durable:
@@ -43,6 +44,12 @@ def atomic_write(path: str | os.PathLike, data: bytes | str, *, durable: bool = 
         except OSError:
             pass
         raise
+
+
+def _umask() -> int:
+    mask = os.umask(0)  # the only portable way to read it is to set it
+    os.umask(mask)
+    return mask
 
 
 def _fsync_dir(directory: Path) -> None:
