@@ -1,0 +1,77 @@
+"""The paper's metrics, on tiny cases where the right answer is known."""
+
+import json
+
+import numpy as np
+import torch
+from click.testing import CliRunner
+from PIL import Image
+
+from im2vec_cli.checkpoint import from_pretrained
+from im2vec_cli.cli import cli
+from im2vec_cli.evaluate import _render_all, generation_l2, nearest_mse, reconstruction_l2
+from im2vec_cli.infer import decode
+from im2vec_cli.svg import VectorImage, VectorShape, rasterize_svg, to_svg
+from tests.helpers import make_tiny_model, polyline_as_cubic
+
+
+def test_nearest_mse_is_zero_for_copies_and_exact_otherwise():
+    g = torch.Generator().manual_seed(0)
+    ref = (torch.rand(50, 3, 8, 8, generator=g) * 255).round().to(torch.uint8)
+    copies = ref[[3, 17, 42]].float() / 255
+    assert torch.allclose(nearest_mse(copies, ref), torch.zeros(3), atol=1e-6)
+    q = torch.rand(4, 3, 8, 8, generator=g)
+    brute = ((q[:, None] - ref[None].float() / 255) ** 2).flatten(2).mean(-1).min(1).values
+    assert torch.allclose(nearest_mse(q, ref, chunk=7), brute, atol=1e-6)
+
+
+def test_generation_l2_is_zero_when_training_set_holds_the_samples(tmp_path):
+    """If the training set is exactly the decoded prior samples, every sample has a copy."""
+    model = from_pretrained(make_tiny_model(tmp_path / "m"))
+    g = torch.Generator().manual_seed(0)
+    z = torch.randn(20, model.config.latent, generator=g)
+    train = (_render_all(decode(model, z), 32) * 255).round().to(torch.uint8)
+    res = generation_l2(model, train, samples=20, seed=0)
+    assert res["generation_l2"] < 1e-5 and res["generated"] == 20
+    other = torch.full_like(train, 255)  # an all-white "training set": a clearly positive score
+    assert generation_l2(model, other, samples=20, seed=0)["generation_l2"] > 1e-3
+
+
+def test_reconstruction_l2_is_zero_for_a_flat_image_and_positive_otherwise(tmp_path):
+    """A flat image is reconstructed exactly (one canvas square); a shape is not, with a tiny model."""
+    model = from_pretrained(make_tiny_model(tmp_path / "m"))
+    Image.new("RGB", (20, 30), (40, 80, 120)).save(tmp_path / "flat.png")
+    res = reconstruction_l2(model, [tmp_path / "flat.png"])
+    assert res["recon_l2"] < 1e-5
+    square = VectorImage(32, 32, [VectorShape([polyline_as_cubic([(8, 8), (24, 8), (24, 24), (8, 24)]).numpy()])])
+    Image.fromarray((rasterize_svg(to_svg(square), 32, 32) * 255).astype(np.uint8)).save(tmp_path / "sq.png")
+    assert reconstruction_l2(model, [tmp_path / "sq.png"])["recon_l2"] > 1e-3
+
+
+def test_eval_command_with_train_data(tmp_path):
+    model = make_tiny_model(tmp_path / "m")
+    for split, n in (("train", 12), ("test", 3)):
+        (tmp_path / "d" / split).mkdir(parents=True)
+        for i in range(n):
+            arr = np.full((32, 32, 3), 255, np.uint8)
+            arr[4 + i % 8 : 20 + i % 8, 6:26] = 0
+            Image.fromarray(arr).save(tmp_path / "d" / split / f"{i}.png")
+    res = CliRunner().invoke(cli, ["eval", "--model", model, "--data", str(tmp_path / "d"), "--train-data",
+                                   str(tmp_path / "d"), "--samples", "8", "--pairs", "3", "-o",
+                                   str(tmp_path / "r.json"), "--markdown", str(tmp_path / "r.md")])
+    assert res.exit_code == 0, res.output
+    r = json.loads((tmp_path / "r.json").read_text())
+    assert r["images"] == 3 and r["generated"] == 8 and r["interpolants"] == 12 and r["train_images"] == 12
+    for key in ("recon_l2", "generation_l2", "interpolation_l2"):
+        assert 0 <= r[key] <= 1
+    md = (tmp_path / "r.md").read_text()
+    assert "generation L2 (Table 2)" in md and md.count("\n") == 5
+
+
+def test_eval_missing_train_data_is_one_error_line(tmp_path):
+    model = make_tiny_model(tmp_path / "m")
+    (tmp_path / "t").mkdir()
+    Image.new("RGB", (32, 32), "white").save(tmp_path / "t" / "a.png")
+    res = CliRunner().invoke(cli, ["eval", "--model", model, "--data", str(tmp_path / "t"), "--train-data",
+                                   str(tmp_path / "nope")])
+    assert res.exit_code == 1 and res.stderr.startswith("Error:")
