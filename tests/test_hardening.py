@@ -294,32 +294,32 @@ def in_output_parent_missing(d, m):
 
 def in_output_is_directory(d, m):
     (d / "out.png").mkdir()
-    (d / "x.svg").write_text('<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">'
-                             '<path d="M 1 1 L 9 1 L 9 9 Z"/></svg>')
+    return _render(d, _svg("M 1 1 L 9 1 L 9 9 Z"))
+
+
+def _render(d, svg_text):
+    (d / "x.svg").write_text(svg_text)
     return ["render", str(d / "x.svg"), "-o", str(d / "out.png")], None
+
+
+def _svg(path_d, view_box="0 0 10 10"):
+    return f'<svg xmlns="http://www.w3.org/2000/svg" viewBox="{view_box}"><path d="{path_d}"/></svg>'
 
 
 def in_render_not_xml(d, m):
-    (d / "x.svg").write_text("<svg <<<")
-    return ["render", str(d / "x.svg"), "-o", str(d / "out.png")], None
+    return _render(d, "<svg <<<")
 
 
 def in_render_relative_commands(d, m):
-    (d / "x.svg").write_text('<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">'
-                             '<path d="m 1 1 l 5 0 l 0 5 z"/></svg>')
-    return ["render", str(d / "x.svg"), "-o", str(d / "out.png")], None
+    return _render(d, _svg("m 1 1 l 5 0 l 0 5 z"))
 
 
 def in_render_open_path(d, m):
-    (d / "x.svg").write_text('<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">'
-                             '<path d="M 1 1 C 2 2 3 3 4 4"/></svg>')
-    return ["render", str(d / "x.svg"), "-o", str(d / "out.png")], None
+    return _render(d, _svg("M 1 1 C 2 2 3 3 4 4"))
 
 
 def in_render_bad_viewbox(d, m):
-    (d / "x.svg").write_text('<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 ten 10">'
-                             '<path d="M 1 1 L 9 1 L 9 9 Z"/></svg>')
-    return ["render", str(d / "x.svg"), "-o", str(d / "out.png")], None
+    return _render(d, _svg("M 1 1 L 9 1 L 9 9 Z", "0 0 ten 10"))
 
 
 def in_unknown_option(d, m):

@@ -28,6 +28,16 @@ def shapes():
     return synthetic_shapes(128, 32)
 
 
+def _png_folder(folder, images):
+    """Write uint8 ``(N, 3, S, S)`` images as PNGs into a new folder."""
+    from PIL import Image
+
+    folder.mkdir()
+    for i, img in enumerate(images):
+        Image.fromarray(img.permute(1, 2, 0).numpy()).save(folder / f"{i}.png")
+    return folder
+
+
 def test_learning_cuts_val_loss_5x(tmp_path, shapes):
     cfg = fast_cfg(steps=500, batch=16, lr=5e-3, beta=0.0, val_every=500, ckpt_every=500, preview_every=500,
                    val_fraction=0.1)
@@ -86,14 +96,10 @@ def test_empty_and_bad_folders(tmp_path):
 
 def test_cli_train_skips_unreadable_files(tmp_path, shapes):
     from click.testing import CliRunner
-    from PIL import Image
 
     from im2vec_cli.cli import cli
 
-    d = tmp_path / "data"
-    d.mkdir()
-    for i, img in enumerate(shapes[:12]):
-        Image.fromarray(img.permute(1, 2, 0).numpy()).save(d / f"{i}.png")
+    d = _png_folder(tmp_path / "data", shapes[:12])
     (d / "broken.png").write_bytes(b"\x89PNG\r\n\x1a\n truncated")
     cfg = tmp_path / "cfg.json"
     cfg.write_text(json.dumps({"model": MODEL.to_dict(), "train": {"val_every": 2, "log_every": 1}}))
@@ -105,12 +111,8 @@ def test_cli_train_skips_unreadable_files(tmp_path, shapes):
 
 
 def test_ddp_two_cpu_processes(tmp_path, shapes):
-    from PIL import Image
 
-    d = tmp_path / "data"
-    d.mkdir()
-    for i, img in enumerate(shapes[:16]):
-        Image.fromarray(img.permute(1, 2, 0).numpy()).save(d / f"{i}.png")
+    d = _png_folder(tmp_path / "data", shapes[:16])
     cfg = tmp_path / "cfg.json"
     cfg.write_text(json.dumps({"model": MODEL.to_dict(), "train": {"val_every": 2, "ckpt_every": 2}}))
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
@@ -129,12 +131,8 @@ def test_sigkill_then_resume_loses_at_most_one_interval(tmp_path, shapes):
     import signal
     import time
 
-    from PIL import Image
 
-    d = tmp_path / "data"
-    d.mkdir()
-    for i, img in enumerate(shapes[:24]):
-        Image.fromarray(img.permute(1, 2, 0).numpy()).save(d / f"{i}.png")
+    d = _png_folder(tmp_path / "data", shapes[:24])
     cfg = tmp_path / "cfg.json"
     cfg.write_text(json.dumps({"model": MODEL.to_dict(),
                                "train": {"val_every": 1000, "ckpt_every": 5, "log_every": 1, "preview_every": 1000}}))
