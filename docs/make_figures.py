@@ -1,4 +1,7 @@
-"""Regenerate docs/vectorize.png and docs/interpolate.png with the shipped default model.
+"""Regenerate docs/vectorize.png and docs/interpolate.png with the shipped models.
+
+vectorize.png: inputs (top), `vectorize` (middle) and `vectorize --refine` (bottom), each
+example with its matching shipped model (digit: mnist, emoji: emoji, icon: icons), else fonts.
 
 Run from the repository root: ``python docs/make_figures.py`` (uses the CLI, as a user would).
 """
@@ -18,16 +21,26 @@ EXE = [sys.executable, "-m", "im2vec_cli"]
 CELL = 128
 
 
+MATCH = {"digit": "mnist", "emoji": "emoji", "icon": "icons"}
+
+
+def model_for(example: Path) -> str:
+    name = MATCH.get(example.stem.split("_")[0], "fonts")
+    return name if (ROOT / "models" / name / "config.json").is_file() else "fonts"
+
+
 def main():
     examples = sorted((ROOT / "examples").glob("*.png"))
     with tempfile.TemporaryDirectory() as tmp:
-        subprocess.run(EXE + ["vectorize", *map(str, examples), "-o", tmp], check=True)
-        sheet = Image.new("RGB", (len(examples) * CELL, 2 * CELL), "white")
+        sheet = Image.new("RGB", (len(examples) * CELL, 3 * CELL), "white")
         for i, ex in enumerate(examples):
             sheet.paste(Image.open(ex).convert("RGB").resize((CELL, CELL), Image.NEAREST), (i * CELL, 0))
-            svg = (Path(tmp) / (ex.stem + ".svg")).read_text()
-            arr = rasterize_svg(svg, CELL, CELL)
-            sheet.paste(Image.fromarray(np.round(arr * 255).astype(np.uint8)), (i * CELL, CELL))
+            for row, extra in ((1, []), (2, ["--refine"])):
+                out = Path(tmp) / f"{ex.stem}_{row}.svg"
+                subprocess.run(EXE + ["vectorize", str(ex), "-o", str(out), "--model", model_for(ex), *extra],
+                               check=True)
+                arr = rasterize_svg(out.read_text(), CELL, CELL)
+                sheet.paste(Image.fromarray(np.round(arr * 255).astype(np.uint8)), (i * CELL, row * CELL))
         sheet.save(ROOT / "docs" / "vectorize.png")
         out = Path(tmp) / "interp"
         subprocess.run(EXE + ["interpolate", str(ROOT / "examples/glyph_a.png"), str(ROOT / "examples/glyph_R.png"),
