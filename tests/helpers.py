@@ -10,6 +10,7 @@ from PIL import Image
 
 from im2vec_cli.cli import cli
 from im2vec_cli.config import ModelConfig
+from im2vec_cli.raster.bezier import line_controls
 from im2vec_cli.svg import rasterize_svg
 
 
@@ -44,7 +45,7 @@ def polyline_as_cubic(verts, dtype=torch.float64):
     n = len(verts)
     for i in range(n):
         a, b = torch.tensor(verts[i]), torch.tensor(verts[(i + 1) % n])
-        pts += [a, a + (b - a) / 3, a + 2 * (b - a) / 3]
+        pts += [a, *line_controls(a, b)]
     return torch.stack(pts).to(dtype)
 
 

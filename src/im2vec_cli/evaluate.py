@@ -17,7 +17,7 @@ import torch
 
 from .data.folder import list_images
 from .errors import DataError, InputError
-from .infer import decode, lerp_latents, vectorize
+from .infer import decode, encode, lerp_latents, vectorize
 from .io import load_image
 from .model.vae import Im2Vec
 from .svg import rasterize_svg, to_svg
@@ -39,8 +39,7 @@ def reconstruction_l2(
             continue
         for img, vec in zip(imgs, vectorize(model, imgs, segments=segments)):
             h, w = img.shape[1:]
-            rec = rasterize_svg(to_svg(vec, 3), w, h)  # (H, W, 3)
-            errs.append(float(((torch.from_numpy(rec).permute(2, 0, 1).float() - img) ** 2).mean()))
+            errs.append(float(((_render(vec, w, h) - img) ** 2).mean()))
     if not errs:
         raise DataError("no readable test images")
     e = np.asarray(errs)
@@ -60,10 +59,14 @@ def eval_files(folder: str | Path, limit: int | None = None, seed: int = 0) -> l
     return files
 
 
+def _render(image, width: int, height: int) -> torch.Tensor:
+    """A vector image -> ``(3, H, W)`` float cairosvg render (of the SVG a user gets)."""
+    return torch.from_numpy(rasterize_svg(to_svg(image, 3), width, height)).permute(2, 0, 1).float()
+
+
 def _render_all(images, size: int) -> torch.Tensor:
     """Vector images -> ``(N, 3, S, S)`` float cairosvg renders."""
-    return torch.stack([torch.from_numpy(rasterize_svg(to_svg(v, 3), size, size)).permute(2, 0, 1).float()
-                        for v in images])
+    return torch.stack([_render(v, size, size) for v in images])
 
 
 def nearest_mse(queries: torch.Tensor, references: torch.Tensor, chunk: int = 2048) -> torch.Tensor:
@@ -106,8 +109,6 @@ def interpolation_l2(model: Im2Vec, train: torch.Tensor, *, pairs: int = 250, st
                      segments: int | None = None) -> dict[str, float]:
     """Table 2, interpolation: ``pairs`` random training pairs, ``steps`` evenly spaced
     interpolants of their latents each (endpoints excluded), scored like ``generation_l2``."""
-    from .infer import encode
-
     g = torch.Generator().manual_seed(seed)
     idx = torch.randint(len(train), (pairs, 2), generator=g)
     imgs = [train[i].float() / 255 for i in idx.flatten().tolist()]

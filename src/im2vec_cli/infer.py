@@ -16,6 +16,7 @@ import torch
 
 from .data.folder import fit_square
 from .model.vae import Decoded, Im2Vec
+from .raster.bezier import line_controls
 from .svg import VectorImage, VectorShape, contour_d, from_tensors, rasterize_svg, to_svg
 
 MIN_AREA = 1e-4  # paths below this area (normalised units) are unused and not exported
@@ -88,9 +89,9 @@ def flat_vector(place: Placement, color: tuple[float, float, float]) -> VectorIm
         return VectorImage(float(w), float(h), [])
     corners = np.array([[0, 0], [w, 0], [w, h], [0, h]], dtype=np.float64)
     pts = []
-    for i in range(4):  # straight sides as cubics: controls at 1/3 and 2/3
+    for i in range(4):  # straight sides as cubics
         a, b = corners[i], corners[(i + 1) % 4]
-        pts += [a, a + (b - a) / 3, a + 2 * (b - a) / 3]
+        pts += [a, *line_controls(a, b)]
     return VectorImage(float(w), float(h), [VectorShape([np.stack(pts)], color, "nonzero")])
 
 

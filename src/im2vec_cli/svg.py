@@ -19,7 +19,7 @@ import svgwrite
 import torch
 
 from .errors import InputError
-from .raster.bezier import flatten_closed, polygon_area, subdivide_to
+from .raster.bezier import flatten_closed, line_controls, polygon_area, subdivide_to
 
 
 @dataclass
@@ -128,7 +128,7 @@ def parse_d(d: str) -> list[np.ndarray]:
             if cmd in "Zz":
                 if cur and pos is not None and start is not None and not np.allclose(pos, start):
                     a, b = np.asarray(pos), np.asarray(start)
-                    cur += [list(a + (b - a) / 3), list(a + 2 * (b - a) / 3), list(b)]
+                    cur += [*map(list, line_controls(a, b)), list(b)]
                 if cur:
                     cur = cur[:-1]  # the last anchor is the start point again
                 close()
@@ -146,7 +146,7 @@ def parse_d(d: str) -> list[np.ndarray]:
         elif cmd == "L":
             p = nums(2)
             a, b = np.asarray(pos), np.asarray(p)
-            cur += [list(a + (b - a) / 3), list(a + 2 * (b - a) / 3), list(b)]
+            cur += [*map(list, line_controls(a, b)), list(b)]
             pos = p
         elif cmd == "C":
             c1, c2, p = nums(2), nums(2), nums(2)

@@ -12,6 +12,7 @@ import numpy as np
 from fontTools.pens.basePen import BasePen
 
 from ..errors import DataError
+from ..raster.bezier import line_controls
 from ..svg import VectorImage, VectorShape
 
 
@@ -31,7 +32,7 @@ class _CubicPen(BasePen):
     def _lineTo(self, pt):
         a = np.asarray(self._getCurrentPoint())
         b = np.asarray(pt)
-        self._cur += [tuple(a + (b - a) / 3), tuple(a + 2 * (b - a) / 3), pt]
+        self._cur += [*map(tuple, line_controls(a, b)), pt]
 
     def _curveToOne(self, p1, p2, p3):
         self._cur += [p1, p2, p3]

@@ -10,6 +10,14 @@ from __future__ import annotations
 import torch
 
 
+def line_controls(a, b):
+    """The two controls of a straight segment ``a -> b`` written as a cubic (at 1/3 and 2/3).
+
+    Works on anything with arithmetic: NumPy arrays, tensors, ``(..., 2)`` batches.
+    """
+    return a + (b - a) / 3, a + 2 * (b - a) / 3
+
+
 def bernstein_weights(samples: int, *, dtype: torch.dtype, device: torch.device) -> torch.Tensor:
     """Cubic Bernstein weights at ``t = i / samples`` for ``i = 0 .. samples-1``.
 
