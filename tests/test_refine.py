@@ -57,3 +57,12 @@ def test_refinement_handles_other_sizes(tmp_path):
     assert info["loss_end"] < info["loss_start"]
     check_svg(to_svg(vec), 50, 30)
     assert _cairo_mse(vec, img) < _cairo_mse(vectorize(model, [img])[0], img)
+
+
+def test_refinement_of_flat_images_matches_amortised(tmp_path):
+    """Blank input gives an empty SVG and a flat colour one square, as without --refine."""
+    model = from_pretrained(make_tiny_model(tmp_path / "tiny"))
+    for img in (torch.ones(3, 20, 30), torch.full((3, 20, 30), 0.25)):
+        vec, _ = refine(model, img, settings=QUICK)
+        assert to_svg(vec) == to_svg(vectorize(model, [img])[0])
+    assert refine(model, torch.ones(3, 20, 30), settings=QUICK)[0].shapes == []

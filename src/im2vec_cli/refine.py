@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import torch
 import torch.nn.functional as F
 
-from .infer import Placement, model_input, to_vector
+from .infer import Placement, flat_vector, model_input, to_vector, uniform_color
 from .model.vae import Decoded, Im2Vec
 from .raster import gaussian_pyramid, pyramid_l2, render_pyramid
 from .raster.bezier import segment_controls
@@ -90,6 +90,9 @@ def refine(
     dev = next(model.parameters()).device
     _, h, w = image.shape
     place = Placement(w, h)
+    flat = uniform_color(image)
+    if flat is not None:  # nothing to fit: the same answer as amortised vectorisation
+        return flat_vector(place, flat), {"loss_start": 0.0, "loss_end": 0.0, "latent_steps": 0, "point_steps": 0}
     x, _ = model_input(model, image)
     fit_h, fit_w = h, w
     if max(h, w) > s.max_side:
