@@ -3,7 +3,7 @@ PY ?= .venv/bin/python
 PIP ?= .venv/bin/pip
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: install test test-slow fuzz lint bench demo data-fonts data-mnist data-emoji data-icons clean
+.PHONY: install test test-slow fuzz lint bench bench-vectorize demo data-fonts data-mnist data-emoji data-icons clean
 
 install: .venv/.installed
 
@@ -30,6 +30,15 @@ bench: install
 	$(PY) bench/raster.py
 	$(PY) bench/train.py
 	$(PY) bench/cli.py
+
+# Vectorize fidelity against potrace and vtracer (issue "Vectorize fidelity"); the tools and
+# the held-out font are installed here only, they are not runtime dependencies.
+LIBERATION_NARROW = /usr/share/fonts/truetype/liberation/LiberationSansNarrow-Regular.ttf
+bench-vectorize: install
+	command -v potrace >/dev/null || (apt-get update -q && apt-get install -y -q potrace)
+	test -f $(LIBERATION_NARROW) || (apt-get update -q && apt-get install -y -q fonts-liberation)
+	$(PIP) install -q vtracer==0.6.15
+	$(PY) bench/vectorize.py --markdown docs/VECTORIZE.md
 
 demo: install
 	@mkdir -p out/demo

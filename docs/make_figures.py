@@ -1,6 +1,7 @@
 """Regenerate docs/vectorize.png and docs/interpolate.png with the shipped models.
 
-vectorize.png: inputs (top), `vectorize` (middle) and `vectorize --refine` (bottom), each
+vectorize.png: inputs (top), `vectorize --no-refine` (middle, the model alone) and `vectorize`
+(bottom, refined: the default for one image), each
 example with its matching shipped model (digit: mnist, emoji: emoji, icon: icons), else fonts.
 
 Run from the repository root: ``python docs/make_figures.py`` (uses the CLI, as a user would).
@@ -35,7 +36,7 @@ def main():
         sheet = Image.new("RGB", (len(examples) * CELL, 3 * CELL), "white")
         for i, ex in enumerate(examples):
             sheet.paste(Image.open(ex).convert("RGB").resize((CELL, CELL), Image.NEAREST), (i * CELL, 0))
-            for row, extra in ((1, []), (2, ["--refine"])):
+            for row, extra in ((1, ["--no-refine"]), (2, [])):
                 out = Path(tmp) / f"{ex.stem}_{row}.svg"
                 subprocess.run(EXE + ["vectorize", str(ex), "-o", str(out), "--model", model_for(ex), *extra],
                                check=True)

@@ -65,7 +65,7 @@ def test_eval_command_with_train_data(tmp_path):
     for key in ("recon_l2", "generation_l2", "interpolation_l2"):
         assert 0 <= r[key] <= 1
     md = (tmp_path / "r.md").read_text()
-    assert "generation L2 (Table 2)" in md and md.count("\n") == 5
+    assert "generation L2 (Table 2)" in md and md.count("\n") == 6 and "paths / segments per image" in md
 
 
 def test_eval_missing_train_data_is_one_error_line(tmp_path):
@@ -75,3 +75,37 @@ def test_eval_missing_train_data_is_one_error_line(tmp_path):
     res = CliRunner().invoke(cli, ["eval", "--model", model, "--data", str(tmp_path / "t"), "--train-data",
                                    str(tmp_path / "nope")])
     assert res.exit_code == 1 and res.stderr.startswith("Error:")
+
+
+def test_outline_metrics_on_known_shapes():
+    """Concentric circles r and r + 1 are 1 px apart; a shape against itself is IoU 1 and
+    Chamfer 0; two unit-offset squares have a known IoU."""
+    from im2vec_cli.evaluate import chamfer_px, outline_iou, svg_mask
+    from tests.helpers import circle
+
+    def img(*contours):
+        return VectorImage(64.0, 64.0, [VectorShape([np.asarray(c) for c in contours], (0, 0, 0), "nonzero")])
+
+    a, b = img(circle(32, 32, 15, 16).numpy()), img(circle(32, 32, 16, 16).numpy())
+    assert chamfer_px(a, a) < 1e-9
+    assert abs(chamfer_px(a, b) - 1.0) < 0.01
+    sq = lambda x0: img(polyline_as_cubic([[x0, 10.0], [x0 + 20, 10], [x0 + 20, 30], [x0, 30]]).numpy())  # noqa: E731
+    m1, m2 = svg_mask(to_svg(sq(10.0)), 256), svg_mask(to_svg(sq(14.0)), 256)
+    assert outline_iou(m1, m1) == 1.0
+    assert abs(outline_iou(m1, m2) - 16 / 24) < 0.01  # overlap 16x20 of union 24x20
+    assert outline_iou(np.zeros((4, 4), bool), np.zeros((4, 4), bool)) == 1.0
+
+
+def test_reconstruction_reports_outline_metrics_where_truth_exists(tmp_path):
+    """Test images with their true outline beside them get IoU and Chamfer; all get compactness."""
+    model = from_pretrained(make_tiny_model(tmp_path / "m"))
+    shape = VectorImage(32.0, 32.0, [VectorShape([polyline_as_cubic([[8.0, 8], [24, 8], [24, 24], [8, 24]]).numpy()],
+                                                 (0, 0, 0), "nonzero")])
+    text = to_svg(shape)
+    (tmp_path / "a.svg").write_text(text)
+    Image.fromarray((rasterize_svg(text, 32, 32) * 255).round().astype(np.uint8)).save(tmp_path / "a.png")
+    res = reconstruction_l2(model, [tmp_path / "a.png"])
+    assert res["outlines"] == 1 and 0 <= res["outline_iou"] <= 1 and res["chamfer_px"] > 0
+    assert res["segments"] > 0 and res["paths"] >= 1
+    (tmp_path / "a.svg").unlink()
+    assert "outline_iou" not in reconstruction_l2(model, [tmp_path / "a.png"])

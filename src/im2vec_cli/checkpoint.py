@@ -102,6 +102,14 @@ def from_pretrained(name_or_dir: str | os.PathLike = DEFAULT_MODEL, device: str 
     return model.to(device).eval()
 
 
+def stored_half(name_or_dir: str | os.PathLike) -> bool:
+    """Whether an exported model's floating-point weights are stored as fp16."""
+    from safetensors import safe_open
+
+    with safe_open(str(resolve_model(name_or_dir) / "model.safetensors"), framework="pt") as f:
+        return any(f.get_slice(k).get_dtype() == "F16" for k in f.keys())
+
+
 def save_checkpoint(path: str | Path, state: dict) -> None:
     """Atomically write a training checkpoint (``torch.save`` to memory, then rename)."""
     buf = io.BytesIO()

@@ -241,6 +241,44 @@ def _load_model(name, device, seed):
     return from_pretrained(name, resolve_device(device))
 
 
+@cli.command("train-aux", epilog=EXIT_HELP)
+@click.argument("data_dir", type=click.Path(file_okay=False))
+@click.option("-o", "--output", required=True, help="Folder for the model with its segment predictor (may be the input's).")
+@click.option("--images", type=click.IntRange(1), default=2048, show_default=True,
+              help="Training images to measure (a seeded subset).")
+@click.option("--steps", type=click.IntRange(1), default=3000, show_default=True, help="Optimiser steps of the fit.")
+@_model_options
+def train_aux(data_dir, output, images, steps, model_name, device, seed):
+    """Train the segment-count predictor (paper sec. 3.3) of a trained model.
+
+    Sweeps k for every path of DATA_DIR's images, fits loss(k) = a*exp(-b*k) + c per path
+    code, and writes the model with the predictor to -o; then `--segments auto` works.
+    """
+    import json
+    from pathlib import Path
+
+    import torch
+
+    from .checkpoint import save_pretrained, stored_half
+    from .data.folder import load_folder
+    from .io import atomic_write
+    from .segment_fit import AuxSettings, train_segment_predictor
+
+    model = _load_model(model_name, device, seed)
+    root = Path(data_dir)
+    root = root / "train" if (root / "train").is_dir() else root
+    data, _ = load_folder(root, model.config.image_size, on_skip=lambda m: click.echo(f"Warning: skipped {m}", err=True))
+    pick = torch.randperm(len(data), generator=torch.Generator().manual_seed(seed))[:images]
+    x = data[pick].float() / 255
+    click.echo(f"measuring {len(x)} images x {model.config.paths} paths", err=True)
+    out, report = train_segment_predictor(model, x, AuxSettings(steps=steps, seed=seed),
+                                          on_step=lambda e: click.echo(f"step {e['step']}: fit {e['fit']:.4f}, "
+                                                                       f"held-out {e['val_fit']:.4f}", err=True))
+    save_pretrained(out, output, half=stored_half(model_name))  # as stored: the VAE weights stay bit-identical
+    atomic_write(Path(output) / "segments.json", json.dumps(report, indent=1) + "\n")
+    click.echo(f"held-out fit (log MSE) {report['val_fit_log_mse']:.4f}; model written to {output}", err=True)
+
+
 def _expand_inputs(inputs):
     """Files and folders (searched recursively for PNG/JPG) -> list of (path, is_from_folder)."""
     from pathlib import Path
@@ -338,37 +376,57 @@ def _load_input_image(item):
               help="SVG file or - for one input; a folder for several inputs or a folder input.")
 @click.option("--segments", default=None, help="Cubic segments per path (default: the model's).")
 @click.option("--paths", "max_paths", type=click.IntRange(1), default=None, help="Keep at most N paths (the largest).")
-@click.option("--refine", is_flag=True,
-              help="Fit the paths to each input by gradient descent through the renderer (slower, more exact).")
+@click.option("--quality", type=click.FloatRange(0, min_open=True), default=None,
+              help="With --segments auto: the error one more segment must remove to be added (MSE on coverage) "
+                   "[5e-4]; smaller is more exact, larger more compact.")
+@click.option("--refine/--no-refine", default=None,
+              help="Fit the paths to each input by gradient descent through the renderer (slower, more exact). "
+                   "[on for a single image, off for several]")
+@click.option("--simplify", "simplify_px", type=click.FloatRange(0), default=None,
+              help="Merge segments while the outline moves less than this many input pixels. [0.25 with --refine, else 0]")
 @_model_options
 @click.pass_context
-def vectorize(ctx, inputs, output, segments, max_paths, refine, model_name, device, seed):
+def vectorize(ctx, inputs, output, segments, quality, max_paths, refine, simplify_px, model_name, device, seed):
     """Vectorize images (PNG/JPG, any size) into SVGs of closed cubic paths.
 
     The SVG's viewBox is the input's pixel grid, so it overlays the input exactly.
-    `-` reads one image from stdin; with -o - the SVG goes to stdout.
+    `-` reads one image from stdin; with -o - the SVG goes to stdout. A single image is
+    refined against itself (about 1 s on a CPU); several are vectorized in batches by the
+    model alone unless --refine is given.
     """
     from .infer import vectorize as amortised
     from .svg import to_svg
-
-    if refine:
-        import os
-
-        from .raster._compile import set_compile
-        from .refine import refine as fit
-
-        if "IM2VEC_COMPILE" not in os.environ:
-            set_compile(False)  # per-image shapes: compiling would cost more than it saves
-        run = lambda model, imgs, **kw: [fit(model, im, **kw)[0] for im in imgs]  # noqa: E731
-    else:
-        run = amortised
 
     k = _segments(segments)
     items = _expand_inputs(inputs)
     single = len(items) == 1 and items[0][1] is None
     if not single and output == "-":
         raise click.UsageError("several inputs need -o DIR")
+    if refine is None:
+        refine = single
     model = _load_model(model_name, device, seed)
+    if k == "auto" and model.segment_predictor is None:
+        raise Im2VecError(f"model {model_name!r} has no segment predictor for --segments auto "
+                          "(add one with `im2vec train-aux`)")
+
+    if refine:
+        import dataclasses
+        import os
+
+        from .raster._compile import set_compile
+        from .refine import RefineSettings
+        from .refine import refine as fit
+
+        if "IM2VEC_COMPILE" not in os.environ:
+            set_compile(False)  # per-image shapes: compiling would cost more than it saves
+        settings = RefineSettings()
+        if simplify_px is not None:
+            settings = dataclasses.replace(settings, simplify_tol=simplify_px)
+        run = lambda model, imgs, **kw: [fit(model, im, settings=settings, **kw)[0] for im in imgs]  # noqa: E731
+    else:
+        from .simplify import simplify
+
+        run = lambda model, imgs, **kw: [simplify(v, simplify_px or 0.0) for v in amortised(model, imgs, **kw)]  # noqa: E731
 
     def work(group):
         loaded = []
@@ -377,7 +435,8 @@ def vectorize(ctx, inputs, output, segments, max_paths, refine, model_name, devi
                 loaded.append((item, root, _load_input_image(item)))
             except Im2VecError as exc:
                 yield item, exc
-        vecs = run(model, [img for _, _, img in loaded], segments=k, max_paths=max_paths) if loaded else []
+        imgs = [img for _, _, img in loaded]
+        vecs = run(model, imgs, segments=k, quality=quality, max_paths=max_paths) if loaded else []
         for (item, root, _), vec in zip(loaded, vecs):
             try:
                 _write_output(_output_for(item, root, output, ".svg", single), to_svg(vec))
@@ -386,8 +445,6 @@ def vectorize(ctx, inputs, output, segments, max_paths, refine, model_name, devi
                 yield item, exc
 
     _batch(ctx, items, work, chunk=VECTORIZE_CHUNK)
-
-
 VECTORIZE_CHUNK = 32  # images per forward pass in batch mode (bounded memory, amortised model calls)
 
 
@@ -395,8 +452,7 @@ def _segments(value):
     if value is None:
         return None
     if value == "auto":
-        raise click.BadParameter("'auto' needs the segment-count network, which this version does not ship yet",
-                                 param_hint="--segments")
+        return "auto"
     try:
         k = int(value)
     except ValueError:
@@ -574,7 +630,9 @@ def eval_cmd(data_dir, limit, train_dir, samples, pairs, segments, output, markd
     Reconstruction L2 (Table 1) on the test images, at each image's size; with --train-data,
     generation and interpolation L2 (Table 2): the MSE of decoded prior samples and of
     interpolants between training pairs to their nearest training image, at the model size.
-    The ImageVAE baseline and the outline metrics are not implemented yet.
+    Where the test images have their true outline beside them (NAME.svg, as `im2vec data
+    fonts` writes), also IoU at 4x and the Chamfer distance; always paths and segments per image.
+    The ImageVAE baseline is not implemented yet.
     """
     import json
 
@@ -602,7 +660,10 @@ def eval_cmd(data_dir, limit, train_dir, samples, pairs, segments, output, markd
             rows += [("generation L2 (Table 2)", "generation_l2", "generated"),
                      ("interpolation L2 (Table 2)", "interpolation_l2", "interpolants")]
         lines = [f"| metric | {res['model']} | n |", "|---|---|---|"]
+        if "outline_iou" in res:
+            rows += [("outline IoU at 4x", "outline_iou", "outlines"), ("Chamfer distance (px)", "chamfer_px", "outlines")]
         lines += [f"| {label} | {res[key]:.4f} ± {res[key + '_stderr']:.4f} | {res[n]} |" for label, key, n in rows]
+        lines += [f"| paths / segments per image | {res['paths']:.2f} / {res['segments']:.1f} | {res['images']} |"]
         _write_output(markdown, "\n".join(lines) + "\n")
 
 

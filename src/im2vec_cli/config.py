@@ -87,6 +87,7 @@ class ModelConfig(_Config):
     max_segments: int = 25
     samples: int = 4  # lines per cubic when rasterising
     levels: int = 3  # Gaussian pyramid levels of the loss (eq. 1)
+    segment_predictor: int = 0  # hidden width of the segment-count MLP (sec. 3.3); 0: none (`im2vec train-aux` adds it)
 
 
 @dataclass(frozen=True)

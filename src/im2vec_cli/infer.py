@@ -52,6 +52,7 @@ def to_vector(dec: Decoded, i: int, place: Placement, *, max_paths: int | None =
     Degenerate (unused) paths are dropped unless ``keep_all``; ``max_paths`` keeps the largest.
     """
     pts = dec.points[i].detach().double().cpu()  # (P, 3k, 2) normalised (model square)
+    counts = None if dec.counts is None else dec.counts[i].tolist()  # (P,) segments before padding
     side = place.side
     left, top = place.offset
     px = pts * side - torch.tensor([left, top], dtype=torch.float64)  # input pixel frame
@@ -62,7 +63,11 @@ def to_vector(dec: Decoded, i: int, place: Placement, *, max_paths: int | None =
         keep = torch.zeros_like(keep)
         keep[order[:max_paths]] = True
     sidx = None if dec.shape_index is None else dec.shape_index.cpu()[keep]
-    norm = px[keep] / torch.tensor([place.width, place.height], dtype=torch.float64)
+    norm = px / torch.tensor([place.width, place.height], dtype=torch.float64)
+    if counts is None:
+        norm = norm[keep]
+    else:  # ragged: trim the padding of each path
+        norm = [norm[p, : 3 * counts[p]] for p in range(len(norm)) if keep[p]]
     cols = dec.colors[i].detach().cpu()
     depth = dec.depth[i].detach().cpu()
     if sidx is None:
@@ -95,11 +100,25 @@ def flat_vector(place: Placement, color: tuple[float, float, float]) -> VectorIm
     return VectorImage(float(w), float(h), [VectorShape([np.stack(pts)], color, "nonzero")])
 
 
+DEFAULT_QUALITY = 5e-4  # --segments auto: error per added segment (MSE on coverage) worth paying for
+
+
+def segment_counts(model: Im2Vec, z: torch.Tensor, segments: int | str | None,
+                   quality: float | None = None) -> int | torch.Tensor | None:
+    """``segments`` as ``Im2Vec.decode`` takes it: ``"auto"`` becomes per-path counts ``(B, P)``
+    chosen by the model's segment predictor at ``quality`` (default ``DEFAULT_QUALITY``)."""
+    if segments == "auto":
+        return model.choose_segments(z, quality or DEFAULT_QUALITY)
+    return segments
+
+
 @torch.no_grad()
-def vectorize(model: Im2Vec, images: list[torch.Tensor], *, segments: int | None = None,
-              max_paths: int | None = None) -> list[VectorImage]:
+def vectorize(model: Im2Vec, images: list[torch.Tensor], *, segments: int | str | None = None,
+              quality: float | None = None, max_paths: int | None = None) -> list[VectorImage]:
     """Amortised vectorisation (``z = mu``) of images ``(3, H_i, W_i)``, in one batch.
 
+    ``segments``: per path, default the model's; ``"auto"`` picks each path's count for
+    ``quality`` (``segment_counts``).
     Flat images (one colour, e.g. blank) skip the model: white gives an empty SVG, any
     other colour one canvas-sized square.
     """
@@ -115,7 +134,7 @@ def vectorize(model: Im2Vec, images: list[torch.Tensor], *, segments: int | None
     if todo:
         xs, places = zip(*(model_input(model, images[i]) for i in todo))
         mu, _ = model.encode(torch.stack(xs).to(dev))
-        dec = model.decode(mu, segments)
+        dec = model.decode(mu, segment_counts(model, mu, segments, quality))
         for j, (i, p) in enumerate(zip(todo, places)):
             out[i] = to_vector(dec, j, p, max_paths=max_paths)
     return out  # type: ignore[return-value]

@@ -110,7 +110,7 @@ class FontJob:
     margin: float
 
 
-def _render_png(svg_text: str, size: int, supersample: int = 4) -> bytes:
+def render_png(svg_text: str, size: int, supersample: int = 4) -> bytes:
     """Grey PNG of the outline: cairosvg at ``supersample`` x, box-filtered down, which gives
     exact area coverage (cairo's own 1x coverage is ~1% off on thin strokes)."""
     from PIL import Image
@@ -143,7 +143,7 @@ def _process_font(job: FontJob) -> dict:
             svg = to_svg(glyph_image(font, c, size=job.size, margin=job.margin), decimals=3)
             stem = f"{ord(c):04x}"
             atomic_write(folder / f"{stem}.svg", svg)
-            atomic_write(folder / f"{stem}.png", _render_png(svg, job.size))
+            atomic_write(folder / f"{stem}.png", render_png(svg, job.size))
             rows.append({"family": family, "style": style, "char": c, "split": split,
                          "png": f"{split}/{slug}/{stem}.png", "svg": f"{split}/{slug}/{stem}.svg"})
     except Exception as exc:  # a font that breaks mid-way is reported, never fatal

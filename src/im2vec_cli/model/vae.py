@@ -13,6 +13,7 @@ from ..raster import render_paths
 from ..raster.bezier import flatten_closed, polygon_area
 from .decoder import PathCodes, PathDecoder
 from .encoder import Encoder
+from .segments import SegmentPredictor, choose_segments
 
 
 def parse_palette(spec: str) -> torch.Tensor | None:
@@ -33,7 +34,10 @@ class Decoded:
     """Decoder output for a batch.
 
     points ``(B, P, 3k, 2)`` normalised frame; colors ``(B, G, 3)``; depth ``(B, G)``;
-    shape_index ``(P,)`` or ``None`` (G = P); fill_rule of every shape.
+    shape_index ``(P,)`` or ``None`` (G = P); fill_rule of every shape; counts ``(B, P)``
+    segments of each path when they differ (``segments="auto"``), else ``None``. A path with
+    fewer than k segments is padded with zero-length segments at its first anchor, which
+    render exactly like the unpadded path.
     """
 
     points: torch.Tensor
@@ -41,6 +45,7 @@ class Decoded:
     depth: torch.Tensor
     shape_index: torch.Tensor | None
     fill_rule: str
+    counts: torch.Tensor | None = None
 
 
 class Im2Vec(nn.Module):
@@ -63,6 +68,8 @@ class Im2Vec(nn.Module):
         self.register_buffer("palette", pal if pal is not None else torch.zeros(0, 3), persistent=False)
         if pal is not None:
             self.palette_logits = nn.Linear(2 * config.lstm_hidden, pal.shape[0])
+        self.segment_predictor = (SegmentPredictor(config.code, config.segment_predictor)
+                                  if config.segment_predictor else None)
 
     def encode(self, images: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """``(B, C, S, S)`` in [0, 1] -> ``mu, logvar (B, D)``."""
@@ -71,24 +78,54 @@ class Im2Vec(nn.Module):
             raise ValueError(f"images must be (B, {self.config.channels}, {s}, {s}), got {tuple(images.shape)}")
         return self.encoder(images)
 
-    def decode(self, z: torch.Tensor, segments: int | None = None) -> Decoded:
-        """``z (B, D)`` -> paths of ``segments`` cubic segments each (default ``config.segments``)."""
+    def decode(self, z: torch.Tensor, segments: int | torch.Tensor | None = None) -> Decoded:
+        """``z (B, D)`` -> closed cubic paths.
+
+        ``segments``: k for every path (default ``config.segments``), or a ``(B, P)`` tensor of
+        per-path counts (e.g. from ``choose_segments``), padded as described in ``Decoded``.
+        """
         cfg = self.config
-        k = segments or cfg.segments
-        if k < 1:
-            raise ValueError(f"segments must be >= 1, got {k}")
         b = z.shape[0]
         code, depth, color, h = self.codes(z)  # (B, P, C), (B, P), (B, P, 3), (B, P, 2H)
         if self.palette.numel():
             # fixed palette (colour-segmented data): a soft choice among its colours
             color = torch.softmax(self.palette_logits(h), -1) @ self.palette.to(h.dtype)  # (B, P, 3)
         centre = self.centres.to(z.dtype).expand(b, -1, -1).flatten(0, 1)  # (B*P, 2)
-        pts = self.decoder(code.flatten(0, 1), k, centre).view(b, cfg.paths, 3 * k, 2)  # (B, P, 3k, 2)
+        counts = None
+        if isinstance(segments, torch.Tensor):
+            counts = segments.to(z.device).long()
+            if counts.shape != (b, cfg.paths) or counts.min() < 1:
+                raise ValueError(f"per-path segments must be (B, P) = ({b}, {cfg.paths}) counts >= 1")
+            pts = self._decode_ragged(code.flatten(0, 1), counts.flatten(), centre).view(b, cfg.paths, -1, 2)
+        else:
+            k = segments or cfg.segments
+            if k < 1:
+                raise ValueError(f"segments must be >= 1, got {k}")
+            pts = self.decoder(code.flatten(0, 1), k, centre).view(b, cfg.paths, 3 * k, 2)  # (B, P, 3k, 2)
         if cfg.grouping == "evenodd":
             # one shape, all paths under even-odd: its colour is the mean of the path colours
             return Decoded(pts, color.mean(1, keepdim=True), depth.new_zeros(b, 1),
-                           torch.zeros(cfg.paths, dtype=torch.long, device=z.device), "evenodd")
-        return Decoded(pts, color, depth, None, "nonzero")
+                           torch.zeros(cfg.paths, dtype=torch.long, device=z.device), "evenodd", counts)
+        return Decoded(pts, color, depth, None, "nonzero", counts)
+
+    def _decode_ragged(self, code: torch.Tensor, counts: torch.Tensor, centre: torch.Tensor) -> torch.Tensor:
+        """``code (N, C)``, ``counts (N,)`` -> ``(N, 3K, 2)``, K = max count, padded at anchor 0."""
+        big = int(counts.max())
+        out = code.new_empty(len(code), 3 * big, 2)
+        for k in counts.unique().tolist():
+            sel = counts == k
+            pts = self.decoder(code[sel], k, centre[sel])  # (n, 3k, 2)
+            pad = pts[:, :1].expand(-1, 3 * (big - k), -1)
+            out[sel] = torch.cat([pts, pad], 1)
+        return out
+
+    def choose_segments(self, z: torch.Tensor, quality: float) -> torch.Tensor:
+        """Per-path segment counts ``(B, P)`` for quality threshold ``quality`` (sec. 3.3)."""
+        if self.segment_predictor is None:
+            raise ValueError("this model has no segment predictor (train one with `im2vec train-aux`)")
+        code = self.codes(z)[0]  # (B, P, C)
+        params = self.segment_predictor(code.flatten(0, 1))
+        return choose_segments(params, quality, self.config.max_segments).view(code.shape[:2])
 
     def render(self, dec: Decoded, size: int | None = None, tau: float = 0.4, composite: str = "soft") -> torch.Tensor:
         """Rasterise decoded paths to ``(B, 3, size, size)``."""
