@@ -34,11 +34,12 @@ bench: install
 # Vectorize fidelity against potrace and vtracer (issue "Vectorize fidelity"); the tools and
 # the held-out font are installed here only, they are not runtime dependencies.
 LIBERATION_NARROW = /usr/share/fonts/truetype/liberation/LiberationSansNarrow-Regular.ttf
+BENCH_ARGS ?= --markdown docs/VECTORIZE.md  # e.g. BENCH_ARGS="--limit 10 --throughput 50" for a quick check
 bench-vectorize: install
 	command -v potrace >/dev/null || (apt-get update -q && apt-get install -y -q potrace)
 	test -f $(LIBERATION_NARROW) || (apt-get update -q && apt-get install -y -q fonts-liberation)
 	$(PIP) install -q vtracer==0.6.15
-	$(PY) bench/vectorize.py --markdown docs/VECTORIZE.md
+	$(PY) bench/vectorize.py $(BENCH_ARGS)
 
 demo: install
 	@mkdir -p out/demo
