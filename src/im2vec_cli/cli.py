@@ -445,6 +445,8 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, refine, simplif
                 yield item, exc
 
     _batch(ctx, items, work, chunk=VECTORIZE_CHUNK)
+
+
 VECTORIZE_CHUNK = 32  # images per forward pass in batch mode (bounded memory, amortised model calls)
 
 

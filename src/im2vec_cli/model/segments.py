@@ -54,10 +54,3 @@ def fit_loss(params: torch.Tensor, ks: torch.Tensor, losses: torch.Tensor, eps: 
 
     ``eps`` (MSE units) keeps paths whose error is already negligible from dominating."""
     return (torch.log(curve(params, ks) + eps) - torch.log(losses + eps)).square().mean()
-
-
-def slope_at(params: torch.Tensor, k: float) -> torch.Tensor:
-    """``-d loss / d k`` at ``k``: ``(N,)``."""
-    a, b, _ = params.unbind(-1)
-    return a * b * torch.exp(-b * k)
-
