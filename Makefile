@@ -1,9 +1,10 @@
 # im2vec developer targets. `make install` once, then `make demo` / `make test`.
 PY ?= .venv/bin/python
+DATA ?= data
 PIP ?= .venv/bin/pip
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: install test test-slow fuzz lint bench bench-vectorize demo data-fonts data-mnist data-emoji data-icons clean
+.PHONY: install test test-slow fuzz lint bench bench-vectorize results demo data-fonts data-mnist data-emoji data-icons clean
 
 install: .venv/.installed
 
@@ -41,6 +42,14 @@ bench-vectorize: install
 	$(PIP) install -q vtracer==0.6.15
 	$(PY) bench/vectorize.py $(BENCH_ARGS)
 
+# The paper's tables from the shipped models (issue "Evaluation"): docs/RESULTS.md and
+# docs/results/. Needs the datasets under $(DATA) (make data-fonts data-mnist data-emoji
+# data-icons); slow (about an hour on 2 cores), not part of `make test`.
+RESULTS_ARGS ?=  # e.g. RESULTS_ARGS="--limit 100 --sweep-limit 50 --only mnist" for a quick check
+results: install
+	$(PIP) install -q -e '.[results]'
+	$(PY) docs/make_results.py --data $(DATA) $(RESULTS_ARGS)
+
 demo: install
 	@mkdir -p out/demo
 	@if [ -d models/fonts ]; then \
@@ -56,7 +65,6 @@ demo: install
 	  echo "rendered out/demo/example.svg -> out/demo/example.png with im2vec's rasterizer"; \
 	fi
 
-DATA ?= data
 data-fonts: install
 	apt-get update -q && apt-get install -y -q $$(cat ../shared/data/font-packages.txt)
 	.venv/bin/im2vec data fonts $(DATA)/fonts

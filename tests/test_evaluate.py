@@ -9,8 +9,7 @@ from PIL import Image
 
 from im2vec_cli.checkpoint import from_pretrained
 from im2vec_cli.cli import cli
-from im2vec_cli.evaluate import _render_all, generation_l2, nearest_mse, reconstruction_l2
-from im2vec_cli.infer import decode
+from im2vec_cli.evaluate import decoded_images, generation_l2, nearest_mse, reconstruction_l2
 from im2vec_cli.svg import VectorImage, VectorShape, rasterize_svg, to_svg
 from tests.helpers import make_tiny_model, polyline_as_cubic
 
@@ -30,7 +29,7 @@ def test_generation_l2_is_zero_when_training_set_holds_the_samples(tmp_path):
     model = from_pretrained(make_tiny_model(tmp_path / "m"))
     g = torch.Generator().manual_seed(0)
     z = torch.randn(20, model.config.latent, generator=g)
-    train = (_render_all(decode(model, z), 32) * 255).round().to(torch.uint8)
+    train = (decoded_images(model, z) * 255).round().to(torch.uint8)
     res = generation_l2(model, train, samples=20, seed=0)
     assert res["generation_l2"] < 1e-5 and res["generated"] == 20
     other = torch.full_like(train, 255)  # an all-white "training set": a clearly positive score

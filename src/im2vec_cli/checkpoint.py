@@ -67,11 +67,12 @@ def resolve_model(name_or_dir: str | os.PathLike) -> Path:
 
 
 def from_pretrained(name_or_dir: str | os.PathLike = DEFAULT_MODEL, device: str | torch.device = "cpu"):
-    """Rebuild an ``Im2Vec`` from its folder and load the weights with strict keys."""
+    """Rebuild the model (``Im2Vec``, or the ``ImageVAE`` baseline) from its folder and load
+    the weights with strict keys."""
     from safetensors import SafetensorError
     from safetensors.torch import load_file
 
-    from .model.vae import Im2Vec
+    from .model.imagevae import build_model
 
     folder = resolve_model(name_or_dir)
     cfg = ModelConfig.load(folder / "config.json")
@@ -83,7 +84,7 @@ def from_pretrained(name_or_dir: str | os.PathLike = DEFAULT_MODEL, device: str 
     except (SafetensorError, OSError, ValueError) as exc:
         raise ModelError(f"{weights}: unreadable weights ({exc})") from None
     try:
-        model = Im2Vec(cfg)
+        model = build_model(cfg)
     except ValueError as exc:
         raise ModelError(f"{folder}: bad config ({exc})") from None
     ref = model.state_dict()
@@ -131,9 +132,9 @@ def export_checkpoint(run_dir: str | Path, out_dir: str | Path, *, half: bool = 
 
     Returns the folder and the step the checkpoint was taken at.
     """
-    from .model.vae import Im2Vec
+    from .model.imagevae import build_model
 
     state = load_checkpoint(Path(run_dir) / "checkpoint.pt")
-    model = Im2Vec(ModelConfig.from_dict(state["model_config"]))
+    model = build_model(ModelConfig.from_dict(state["model_config"]))
     model.load_state_dict(state["model"], strict=True)
     return save_pretrained(model, out_dir, half=half), int(state["step"])

@@ -142,6 +142,8 @@ def _device_option(f):
 @click.option("--val", "val_dir", default=None, help="Validation folder (default: DATA_DIR/val, or a split).")
 @click.option("--config", "config_file", default=None, type=click.Path(dir_okay=False),
               help="JSON with 'model' and/or 'train' sections (options below override it).")
+@click.option("--arch", type=click.Choice(["im2vec", "imagevae"]),
+              help="im2vec: the vector model; imagevae: the raster baseline of the paper (sec. 4). [im2vec]")
 @click.option("--size", type=click.IntRange(8), help="Image size (power of two). [64]")
 @click.option("--paths", type=click.IntRange(1), help="Paths per image. [4]")
 @click.option("--latent", type=click.IntRange(1), help="Latent size. [128]")
@@ -156,8 +158,8 @@ def _device_option(f):
 @click.option("--workers", type=click.IntRange(1), help="Image loading threads. [2]")
 @click.option("--resume", is_flag=True, help="Continue exactly from RUN/checkpoint.pt.")
 @_device_option
-def train(data_dir, run_dir, val_dir, config_file, size, paths, latent, grouping, batch, steps, epochs, lr, beta,
-          seed, workers, resume, device):
+def train(data_dir, run_dir, val_dir, config_file, arch, size, paths, latent, grouping, batch, steps, epochs, lr,
+          beta, seed, workers, resume, device):
     """Train an Im2Vec model on a folder of images (PNG/JPG, searched recursively).
 
     A folder made by `im2vec data` (with train/ and val/) uses its own split. Unreadable
@@ -178,7 +180,7 @@ def train(data_dir, run_dir, val_dir, config_file, size, paths, latent, grouping
             raise Im2VecError(f"{config_file}: cannot read config ({exc})") from None
     m = dict(sections.get("model", {}))
     t = dict(sections.get("train", {}))
-    for key, val in (("image_size", size), ("paths", paths), ("latent", latent), ("grouping", grouping)):
+    for key, val in (("arch", arch), ("image_size", size), ("paths", paths), ("latent", latent), ("grouping", grouping)):
         if val is not None:
             m[key] = val
     for key, val in (("batch", batch), ("steps", steps), ("lr", lr), ("beta", beta), ("seed", seed),
@@ -233,12 +235,16 @@ def _model_options(f):
     return f
 
 
-def _load_model(name, device, seed):
+def _load_model(name, device, seed, raster_ok: bool = False):
     from .checkpoint import from_pretrained
+    from .errors import ModelError
     from .runtime import resolve_device, seed_everything
 
     seed_everything(seed)
-    return from_pretrained(name, resolve_device(device))
+    model = from_pretrained(name, resolve_device(device))
+    if model.raster_output and not raster_ok:
+        raise ModelError(f"{name} is an ImageVAE baseline: it draws pixels, not paths (only `im2vec eval` takes it)")
+    return model
 
 
 @cli.command("train-aux", epilog=EXIT_HELP)
@@ -625,8 +631,13 @@ def export(run_dir, output, half):
 @click.option("--segments", default=None, help="Cubic segments per path (default: the model's).")
 @click.option("-o", "--output", default="-", show_default=True, help="JSON file or -.")
 @click.option("--markdown", default=None, help="Also write the figures as a markdown table to this file.")
+@click.option("--sweep", default=None, metavar="K1-K2",
+              help="Segments ablation (paper Fig. 5): reconstruction L2 at every k in K1..K2, with the sample "
+                   "deformation on and switched off at inference.")
+@click.option("--plot", default=None, help="With --sweep: write the ablation plot to this PNG (needs matplotlib).")
 @_model_options
-def eval_cmd(data_dir, limit, train_dir, samples, pairs, segments, output, markdown, model_name, device, seed):
+def eval_cmd(data_dir, limit, train_dir, samples, pairs, segments, output, markdown, sweep, plot, model_name, device,
+             seed):
     """The paper's metrics for a model, measured on the SVGs it writes (rendered by cairosvg).
 
     Reconstruction L2 (Table 1) on the test images, at each image's size; with --train-data,
@@ -634,16 +645,23 @@ def eval_cmd(data_dir, limit, train_dir, samples, pairs, segments, output, markd
     interpolants between training pairs to their nearest training image, at the model size.
     Where the test images have their true outline beside them (NAME.svg, as `im2vec data
     fonts` writes), also IoU at 4x and the Chamfer distance; always paths and segments per image.
-    The ImageVAE baseline is not implemented yet.
+    An ImageVAE baseline (`train --arch imagevae`) is scored on its raster output, without
+    the vector metrics.
     """
     import json
 
-    from .evaluate import eval_files, generation_l2, interpolation_l2, reconstruction_l2
+    from .evaluate import eval_files, generation_l2, interpolation_l2, reconstruction_l2, segments_sweep, sweep_plot
 
-    model = _load_model(model_name, device, seed)
+    if plot and not sweep:
+        raise click.UsageError("--plot needs --sweep")
+    ks = _sweep_range(sweep) if sweep else None
+    model = _load_model(model_name, device, seed, raster_ok=True)
+    if ks and model.raster_output:
+        raise click.UsageError("--sweep: the ImageVAE baseline has no segments")
     k = _segments(segments)
-    res = {"model": getattr(model, "name", model_name)}
-    res.update(reconstruction_l2(model, eval_files(data_dir, limit, seed), segments=k))
+    res = {"model": getattr(model, "name", model_name), "arch": model.config.arch}
+    files = eval_files(data_dir, limit, seed)
+    res.update(reconstruction_l2(model, files, segments=k))
     if train_dir:
         from pathlib import Path
 
@@ -655,7 +673,16 @@ def eval_cmd(data_dir, limit, train_dir, samples, pairs, segments, output, markd
         res["train_images"] = len(train)
         res.update(generation_l2(model, train, samples=samples, seed=seed, segments=k))
         res.update(interpolation_l2(model, train, pairs=pairs, seed=seed, segments=k))
+    if ks:
+        res["segments_sweep"] = segments_sweep(model, files, ks)
+        if model.decoder.deform is not None:
+            res["segments_sweep_deform_off"] = segments_sweep(model, files, ks, deform=False)
     _write_output(output, json.dumps(res, indent=1) + "\n")
+    if plot:
+        series = {"sample deformation": res["segments_sweep"]}
+        if "segments_sweep_deform_off" in res:
+            series["deformation off at inference"] = res["segments_sweep_deform_off"]
+        _write_output(plot, sweep_plot(series, f"{res['model']}: {res['images']} test images"))
     if markdown:
         rows = [("reconstruction L2 (Table 1)", "recon_l2", "images")]
         if train_dir:
@@ -665,8 +692,17 @@ def eval_cmd(data_dir, limit, train_dir, samples, pairs, segments, output, markd
         if "outline_iou" in res:
             rows += [("outline IoU at 4x", "outline_iou", "outlines"), ("Chamfer distance (px)", "chamfer_px", "outlines")]
         lines += [f"| {label} | {res[key]:.4f} ± {res[key + '_stderr']:.4f} | {res[n]} |" for label, key, n in rows]
-        lines += [f"| paths / segments per image | {res['paths']:.2f} / {res['segments']:.1f} | {res['images']} |"]
+        if "paths" in res:
+            lines += [f"| paths / segments per image | {res['paths']:.2f} / {res['segments']:.1f} | {res['images']} |"]
         _write_output(markdown, "\n".join(lines) + "\n")
+
+
+def _sweep_range(text: str) -> list[int]:
+    """``"6-25"`` -> ``[6, ..., 25]``."""
+    lo, sep, hi = text.partition("-")
+    if not (sep and lo.strip().isdigit() and hi.strip().isdigit()) or not 1 <= int(lo) <= int(hi) <= 256:
+        raise click.BadParameter(f"expected K1-K2 with 1 <= K1 <= K2 <= 256, got {text!r}", param_hint="--sweep")
+    return list(range(int(lo), int(hi) + 1))
 
 
 @cli.group(epilog=EXIT_HELP)

@@ -69,6 +69,7 @@ class _Config:
 class ModelConfig(_Config):
     """Architecture of the Im2Vec VAE (paper sec. 3)."""
 
+    arch: str = "im2vec"  # "im2vec" (paths, sec. 3) or "imagevae" (the raster baseline of sec. 4)
     image_size: int = 64
     channels: int = 3
     latent: int = 128

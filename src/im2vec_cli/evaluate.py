@@ -10,29 +10,38 @@ one that draws nothing like it scores high.
 
 Against true outlines (fonts: ``name.svg`` beside ``name.png``): IoU of the insides at 4x
 (cairosvg renders thresholded at 0.5) and the symmetric Chamfer distance between the two
-outlines in input pixels. Compactness: paths and cubic segments per image."""
+outlines in input pixels. Compactness: paths and cubic segments per image.
+
+The ImageVAE baseline (paper sec. 4) draws pixels: its reconstruction is its raster output
+mapped back to the input's frame, its generated images are its raster outputs, and it has no
+vector metrics.
+
+The segments ablation (paper Fig. 5): reconstruction L2 of one model decoded at each k, with
+the sample deformation on, or switched off at inference (``segments_sweep``)."""
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 import torch
 
 from .data.folder import list_images
-from .errors import DataError, InputError
-from .infer import decode, encode, lerp_latents, vectorize
+from .errors import DataError, Im2VecError, InputError
+from .infer import decode, encode, lerp_latents, reconstruct_raster, vectorize
 from .io import load_image
 from .model.vae import Im2Vec
 from .svg import VectorImage, from_svg, rasterize_svg, to_svg
 
 
 def reconstruction_l2(
-    model: Im2Vec, files: list[Path], *, segments: int | str | None = None, batch: int = 64
+    model: Im2Vec, files: list[Path], *, segments: int | str | None = None, batch: int = 64, outlines: bool = True
 ) -> dict[str, float]:
     """Mean and standard error of the per-image MSE over ``files`` (unreadable files skipped),
     the mean paths and segments per image, and, for images with their true outline beside
-    them (``name.svg``, as the Fonts dataset has), IoU at 4x and the Chamfer distance (px)."""
+    them (``name.svg``, as the Fonts dataset has), IoU at 4x and the Chamfer distance (px).
+    For the ImageVAE baseline: the MSE only. ``outlines=False`` skips the outline metrics."""
     errs, paths, segs, ious, chamfers = [], [], [], [], []
     for i in range(0, len(files), batch):
         imgs, names = [], []
@@ -44,20 +53,24 @@ def reconstruction_l2(
                 continue
         if not imgs:
             continue
+        if model.raster_output:
+            errs += [float(((r - img) ** 2).mean()) for r, img in zip(reconstruct_raster(model, imgs), imgs)]
+            continue
         for f, img, vec in zip(names, imgs, vectorize(model, imgs, segments=segments)):
             h, w = img.shape[1:]
             errs.append(float(((_render(vec, w, h) - img) ** 2).mean()))
             paths.append(vec.num_paths)
             segs.append(vec.num_segments)
             truth = f.with_suffix(".svg")
-            if truth.is_file():
+            if outlines and truth.is_file():
                 ref = from_svg(truth.read_bytes())
                 ious.append(outline_iou(svg_mask(to_svg(vec), 4 * w, 4 * h), svg_mask(to_svg(ref), 4 * w, 4 * h)))
                 chamfers.append(chamfer_px(vec, ref))
     if not errs:
         raise DataError("no readable test images")
-    out = {**_mean("recon_l2", errs), "images": len(errs), "paths": float(np.mean(paths)),
-           "segments": float(np.mean(segs))}
+    out = {**_mean("recon_l2", errs), "images": len(errs)}
+    if paths:
+        out.update(paths=float(np.mean(paths)), segments=float(np.mean(segs)))
     if ious:
         out.update(_mean("outline_iou", ious), **_mean("chamfer_px", chamfers), outlines=len(ious))
     return out
@@ -127,9 +140,45 @@ def _render(image, width: int, height: int) -> torch.Tensor:
     return torch.from_numpy(rasterize_svg(to_svg(image, 3), width, height)).permute(2, 0, 1).float()
 
 
-def _render_all(images, size: int) -> torch.Tensor:
-    """Vector images -> ``(N, 3, S, S)`` float cairosvg renders."""
-    return torch.stack([_render(v, size, size) for v in images])
+@torch.no_grad()
+def decoded_images(model, z: torch.Tensor, segments: int | None = None, chunk: int = 256) -> torch.Tensor:
+    """Latents ``(N, D)`` -> ``(N, 3, S, S)`` images at the model size: cairosvg renders of the
+    decoded SVGs, or the ImageVAE baseline's raster output."""
+    if not model.raster_output:
+        return torch.stack([_render(v, model.config.image_size, model.config.image_size)
+                            for v in decode(model, z, segments=segments)])
+    dev = next(model.parameters()).device
+    return torch.cat([model.decode(z[i : i + chunk].to(dev)).cpu() for i in range(0, len(z), chunk)]).clamp(0, 1)
+
+
+@contextmanager
+def deformation_off(model: Im2Vec):
+    """Within the block, decode on evenly spaced circle samples (no sample deformation)."""
+    saved = model.decoder.deform
+    model.decoder.deform = None
+    try:
+        yield model
+    finally:
+        model.decoder.deform = saved
+
+
+def segments_sweep(model: Im2Vec, files: list[Path], ks: list[int], *, deform: bool = True) -> list[dict]:
+    """Paper Fig. 5: reconstruction L2 (as ``reconstruction_l2``) with every path at k segments,
+    for each k in ``ks``; ``deform=False`` switches the sample deformation off at inference
+    (a model trained without it, ``deform: false``, is the training-time ablation)."""
+    if model.raster_output:
+        raise ValueError("the ImageVAE baseline has no segments")
+    if not deform and model.decoder.deform is None:
+        raise ValueError("this model has no sample deformation to switch off")
+    rows = []
+    for k in ks:
+        if deform:
+            r = reconstruction_l2(model, files, segments=k, outlines=False)
+        else:
+            with deformation_off(model):
+                r = reconstruction_l2(model, files, segments=k, outlines=False)
+        rows.append({"k": k, "recon_l2": r["recon_l2"], "recon_l2_stderr": r["recon_l2_stderr"]})
+    return rows
 
 
 def nearest_mse(queries: torch.Tensor, references: torch.Tensor, chunk: int = 2048) -> torch.Tensor:
@@ -162,8 +211,7 @@ def generation_l2(model: Im2Vec, train: torch.Tensor, *, samples: int = 1000, se
     to its nearest training image. ``train``: ``(N, 3, S, S)`` uint8 at the model size."""
     g = torch.Generator().manual_seed(seed)
     z = torch.randn(samples, model.config.latent, generator=g)
-    renders = _render_all(decode(model, z, segments=segments), model.config.image_size)
-    e = nearest_mse(renders, train).numpy()
+    e = nearest_mse(decoded_images(model, z, segments), train).numpy()
     return {"generation_l2": float(e.mean()), "generation_l2_stderr": float(e.std(ddof=1) / np.sqrt(len(e))),
             "generated": len(e)}
 
@@ -177,7 +225,35 @@ def interpolation_l2(model: Im2Vec, train: torch.Tensor, *, pairs: int = 250, st
     imgs = [train[i].float() / 255 for i in idx.flatten().tolist()]
     z = encode(model, imgs).view(pairs, 2, -1)  # (pairs, 2, D)
     zs = torch.cat([lerp_latents(a, b, steps)[1:-1] for a, b in z])  # (pairs * steps, D)
-    renders = _render_all(decode(model, zs, segments=segments), model.config.image_size)
-    e = nearest_mse(renders, train).numpy()
+    e = nearest_mse(decoded_images(model, zs, segments), train).numpy()
     return {"interpolation_l2": float(e.mean()), "interpolation_l2_stderr": float(e.std(ddof=1) / np.sqrt(len(e))),
             "interpolants": len(e)}
+
+
+def sweep_plot(series: dict[str, list[dict]], title: str = "") -> bytes:
+    """PNG line plot of reconstruction L2 against k, one line per ``segments_sweep`` result
+    (needs matplotlib: ``pip install 'im2vec[results]'``)."""
+    import io
+
+    try:
+        import matplotlib
+    except ImportError:
+        raise Im2VecError("the plot needs matplotlib: pip install 'im2vec[results]'") from None
+    matplotlib.use("Agg")
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(5.5, 3.6), dpi=120)
+    ax = fig.subplots()
+    for label, rows in series.items():
+        k = [r["k"] for r in rows]
+        ax.errorbar(k, [r["recon_l2"] for r in rows], yerr=[r["recon_l2_stderr"] for r in rows], marker="o",
+                    markersize=3, capsize=2, label=label)
+    ax.set_xlabel("segments per path (k)")
+    ax.set_ylabel("reconstruction L2")
+    ax.set_title(title, fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    return buf.getvalue()

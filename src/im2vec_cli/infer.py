@@ -141,6 +141,26 @@ def vectorize(model: Im2Vec, images: list[torch.Tensor], *, segments: int | str 
 
 
 @torch.no_grad()
+def reconstruct_raster(model, images: list[torch.Tensor]) -> list[torch.Tensor]:
+    """The ImageVAE baseline's reconstructions (``z = mu``) of images ``(3, H_i, W_i)``, each
+    mapped back to its input's frame (the model square resized to ``max(H, W)`` and cropped)."""
+    import torch.nn.functional as F
+
+    dev = next(model.parameters()).device
+    xs, places = zip(*(model_input(model, im) for im in images))
+    out = model.decode(model.encode(torch.stack(xs).to(dev))[0]).cpu()  # (N, 3, S, S)
+    recs = []
+    for img, p in zip(out, places):
+        if p.side != img.shape[-1]:
+            down = p.side < img.shape[-1]
+            img = F.interpolate(img[None], size=(p.side, p.side), mode="area" if down else "bilinear",
+                                align_corners=None if down else False)[0]
+        left, top = p.offset
+        recs.append(img[:, top : top + p.height, left : left + p.width].clamp(0, 1))
+    return recs
+
+
+@torch.no_grad()
 def encode(model: Im2Vec, images: list[torch.Tensor]) -> torch.Tensor:
     """Posterior means ``(N, D)`` of images ``(3, H_i, W_i)``."""
     dev = next(model.parameters()).device

@@ -27,6 +27,7 @@ from .config import ModelConfig, TrainConfig
 from .data.folder import load_folder, split_indices
 from .errors import DataError, Im2VecError, TrainingError
 from .io import atomic_write
+from .model.imagevae import build_model
 from .model.vae import Im2Vec, kl_divergence
 from .raster import gaussian_pyramid, pyramid_l2, render_pyramid
 
@@ -77,9 +78,17 @@ def schedule(step: int, tcfg: TrainConfig) -> dict[str, float]:
 
 
 def reconstruction_loss(model: Im2Vec, images: torch.Tensor, segments: int, tau: float, sample: bool):
-    """Pyramid L2 (eq. 1) of the reconstruction, and the KL term. ``images (B, 3, S, S)``."""
-    cfg = _unwrap(model).config
+    """Pyramid L2 (eq. 1) of the reconstruction, and the KL term. ``images (B, 3, S, S)``.
+
+    Returns ``(pyramid L2, KL, decoded)``: ``Decoded`` paths, or for the ImageVAE baseline its
+    ``(B, 3, S, S)`` raster, scored by the same pyramid loss.
+    """
+    m = _unwrap(model)
+    cfg = m.config
     dec, mu, logvar = model(images, segments, sample=sample)
+    if m.raster_output:
+        renders = gaussian_pyramid(dec, cfg.levels)
+        return pyramid_l2(renders, gaussian_pyramid(images, cfg.levels)), kl_divergence(mu, logvar), dec
     renders = render_pyramid(
         dec.points, dec.colors, dec.depth, size=cfg.image_size, levels=cfg.levels, tau=tau,
         fill_rule=dec.fill_rule, shape_index=dec.shape_index, samples=cfg.samples, composite="soft",
@@ -101,7 +110,7 @@ def evaluate_l2(model: Im2Vec, images: torch.Tensor, segments: int, tau: float, 
     for i in range(0, len(images), batch):
         x = images[i : i + batch].to(dev).float() / 255
         loss, _, dec = reconstruction_loss(m, x, segments, tau, sample=False)
-        img = m.render(dec, tau=tau, composite="over")
+        img = dec if m.raster_output else m.render(dec, tau=tau, composite="over")
         pyr += float(loss) * len(x)
         mse += float(((img - x) ** 2).mean()) * len(x)
         n += len(x)
@@ -110,20 +119,21 @@ def evaluate_l2(model: Im2Vec, images: torch.Tensor, segments: int, tau: float, 
 
 
 def preview_grid(model: Im2Vec, images: torch.Tensor, segments: int, tau: float, scale: int = 2) -> bytes:
-    """PNG rows of input | reconstruction | reconstruction with control points (anchors red)."""
+    """PNG rows of input | reconstruction | reconstruction with control points (anchors red;
+    the ImageVAE baseline has none)."""
     from PIL import Image, ImageDraw
 
     m = _unwrap(model)
     with torch.no_grad():
         x = images.float() / 255
         dec, _, _ = m(x.to(next(m.parameters()).device), segments, sample=False)
-        rec = m.render(dec, tau=tau, composite="over").cpu()
+        rec = (dec if m.raster_output else m.render(dec, tau=tau, composite="over")).cpu()
     s = m.config.image_size * scale
     sheet = Image.new("RGB", (3 * s, len(x) * s), "white")
     for r in range(len(x)):
         for c, img in enumerate((x[r], rec[r], rec[r])):
             tile = Image.fromarray((img.permute(1, 2, 0).clamp(0, 1) * 255).byte().numpy()).resize((s, s), Image.NEAREST)
-            if c == 2:
+            if c == 2 and not m.raster_output:
                 draw = ImageDraw.Draw(tile)
                 for path in dec.points[r].cpu():
                     for j, (px, py) in enumerate(path.tolist()):
@@ -163,7 +173,8 @@ def train(
     images: torch.Tensor | None = None,
     epochs: float | None = None,
 ) -> Path:
-    """Train an Im2Vec model; returns the exported model folder ``RUN/model``.
+    """Train an Im2Vec model (or the ImageVAE baseline, ``model_cfg.arch``); returns the
+    exported model folder ``RUN/model``.
 
     Under ``torchrun`` (``WORLD_SIZE`` > 1) it runs DDP (gloo on CPU, nccl on CUDA); each
     rank draws its own batches and only rank 0 writes files. ``images`` (uint8
@@ -207,7 +218,7 @@ def train(
 
     # ---- model and optimiser
     torch.manual_seed(train_cfg.seed)
-    model = Im2Vec(model_cfg).to(device)
+    model = build_model(model_cfg).to(device)
     opt = Lookahead(torch.optim.RAdam(model.parameters(), lr=train_cfg.lr), train_cfg.lookahead_k,
                     train_cfg.lookahead_alpha)
     gen = torch.Generator().manual_seed(train_cfg.seed * 1000 + rank)
@@ -215,7 +226,7 @@ def train(
     ckpt_path = run_dir / "checkpoint.pt"
     if resume:
         state = load_checkpoint(ckpt_path)
-        if state["model_config"] != model_cfg.to_dict():
+        if ModelConfig.from_dict(state["model_config"]) != model_cfg:
             raise Im2VecError(f"{ckpt_path}: was trained with a different model config")
         model.load_state_dict(state["model"])
         opt.load_state_dict(state["optimizer"])

@@ -51,8 +51,12 @@ class Decoded:
 class Im2Vec(nn.Module):
     """The model of the paper (sec. 3), configured by ``ModelConfig``."""
 
+    raster_output = False
+
     def __init__(self, config: ModelConfig):
         super().__init__()
+        if config.arch != "im2vec":
+            raise ValueError(f"Im2Vec needs arch 'im2vec', got {config.arch!r} (use model.imagevae.build_model)")
         if config.grouping not in ("evenodd", "layers"):
             raise ValueError(f"grouping must be 'evenodd' or 'layers', got {config.grouping!r}")
         self.config = config
