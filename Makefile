@@ -44,7 +44,7 @@ bench-vectorize: install
 
 # The paper's tables from the shipped models (issue "Evaluation"): docs/RESULTS.md and
 # docs/results/. Needs the datasets under $(DATA) (make data-fonts data-mnist data-emoji
-# data-icons); slow (about an hour on 2 cores), not part of `make test`.
+# data-icons); slow (about 25 minutes on 2 cores), not part of `make test`.
 RESULTS_ARGS ?=  # e.g. RESULTS_ARGS="--limit 100 --sweep-limit 50 --only mnist" for a quick check
 results: install
 	$(PIP) install -q -e '.[results]'

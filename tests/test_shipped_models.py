@@ -1,4 +1,5 @@
-"""Every model in models/ loads; the fonts model keeps the quality its card states."""
+"""Every model in models/ (and the baselines and ablation models under it) loads; models
+keep the quality their cards state."""
 
 import json
 from pathlib import Path
@@ -8,7 +9,7 @@ import pytest
 from im2vec_cli.checkpoint import REPO_MODELS, from_pretrained
 from im2vec_cli.evaluate import reconstruction_l2
 
-MODELS = sorted(p.parent.name for p in REPO_MODELS.glob("*/config.json"))
+MODELS = sorted(str(p.parent.relative_to(REPO_MODELS)) for p in REPO_MODELS.glob("**/config.json"))
 ASSETS = Path(__file__).parent / "assets" / "fonts_test"
 
 
@@ -31,10 +32,10 @@ def _with_assets():
 
 @pytest.mark.parametrize("name", _with_assets())
 def test_quality_on_test_split_subset(name):
-    # 64 test-split images (never trained on) copied into tests/assets/<name>_test; the
-    # card's metrics.json records the figure measured on exactly these files.
+    # 64 test-split images (never trained on) copied into tests/assets/<name>_test (or the
+    # card's "assets_dir"); the card's metrics.json records the figure measured on exactly these files.
     card = json.loads((REPO_MODELS / name / "metrics.json").read_text())
-    files = sorted((ASSETS.parent / f"{name}_test").glob("*.png"))
+    files = sorted((ASSETS.parent / card.get("assets_dir", f"{name}_test")).glob("*.png"))
     res = reconstruction_l2(from_pretrained(name), files)
     assert res["images"] == card["assets_subset_images"] == len(files)
     assert res["recon_l2"] <= card["assets_subset_recon_l2"] * 1.05 + 1e-3, res
