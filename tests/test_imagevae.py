@@ -10,7 +10,7 @@ from PIL import Image
 
 from im2vec_cli.checkpoint import from_pretrained, save_pretrained
 from im2vec_cli.config import ModelConfig
-from im2vec_cli.evaluate import deformation_off, generation_l2, reconstruction_l2, segments_sweep
+from im2vec_cli.evaluate import deformation_off, generation_l2, interpolation_l2, reconstruction_l2, segments_sweep
 from im2vec_cli.model.imagevae import ImageVAE, build_model
 from im2vec_cli.train import evaluate_l2, train
 from tests.helpers import TINY, make_tiny_model, run, synthetic_shapes
@@ -42,7 +42,7 @@ def test_shapes_and_builder():
 def test_known_answers_for_raster_metrics(tmp_path):
     """A model that draws white: reconstruction L2 of a white image is 0; of an image with a
     black block it is the block's share of the pixels, in the input's own (non-square) frame;
-    generation L2 is 0 against a white training set and 1 against a black one."""
+    generation and interpolation L2 are 0 against a white training set and 1 against a black one."""
     model = from_pretrained(_white_model(tmp_path / "m"))
     Image.new("RGB", (40, 24), "white").save(tmp_path / "white.png")
     arr = np.full((24, 40, 3), 255, np.uint8)
@@ -54,6 +54,10 @@ def test_known_answers_for_raster_metrics(tmp_path):
     white = torch.full((10, 3, 32, 32), 255, dtype=torch.uint8)
     assert generation_l2(model, white, samples=16)["generation_l2"] < 1e-9
     assert abs(generation_l2(model, torch.zeros_like(white), samples=16)["generation_l2"] - 1) < 1e-6
+    # interpolants between training pairs are white too: 0 against white, 1 against black
+    assert interpolation_l2(model, white, pairs=5)["interpolation_l2"] < 1e-9
+    res = interpolation_l2(model, torch.zeros_like(white), pairs=5)
+    assert abs(res["interpolation_l2"] - 1) < 1e-6 and res["interpolants"] == 20
 
 
 def test_train_export_and_eval(tmp_path):
