@@ -4,7 +4,7 @@ Every figure comes from an `im2vec eval` command run here, as a user would run i
 command, its wall time and the machine are written beside the figure. The paper's numbers
 are the only typed-in figures (``PAPER``), each with where it comes from.
 
-    python docs/make_results.py --data data [--limit 1000] [--sweep-limit 300] [--only fonts,mnist]
+    python docs/make_results.py --data data [--limit 500] [--sweep-limit 150] [--only fonts,mnist]
 
 Datasets are the `im2vec data` folders under ``--data`` (`make data-fonts` etc.); a model
 whose dataset is missing is listed as skipped, not silently dropped.
@@ -99,8 +99,8 @@ def fmt(res: dict, key: str, digits: int = 4) -> str:
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default="data", help="Folder of the `im2vec data` datasets.")
-    ap.add_argument("--limit", type=int, default=1000, help="Test images per model (seeded subset).")
-    ap.add_argument("--sweep-limit", type=int, default=200, help="Test images per point of the ablation.")
+    ap.add_argument("--limit", type=int, default=500, help="Test images per model (seeded subset).")
+    ap.add_argument("--sweep-limit", type=int, default=150, help="Test images per point of the ablation.")
     ap.add_argument("--samples", type=int, default=1000, help="Prior samples (generation).")
     ap.add_argument("--pairs", type=int, default=250, help="Training pairs (interpolation).")
     ap.add_argument("--only", default=None, help="Comma-separated dataset names to run (default: all).")
