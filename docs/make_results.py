@@ -27,14 +27,14 @@ ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "docs" / "results"
 EXE = [sys.executable, "-m", "im2vec_cli"]
 
-# (label, model folder, dataset folder name, Table 2 metrics?)
+# (label, model folder, dataset folder name)
 MODELS = [
-    ("fonts", "models/fonts", "fonts", True),
-    ("fonts ImageVAE", "models/baselines/fonts-imagevae", "fonts", True),
-    ("mnist", "models/mnist", "mnist", True),
-    ("mnist ImageVAE", "models/baselines/mnist-imagevae", "mnist", True),
-    ("emoji", "models/emoji", "emoji", True),
-    ("icons", "models/icons", "icons", True),
+    ("fonts", "models/fonts", "fonts"),
+    ("fonts ImageVAE", "models/baselines/fonts-imagevae", "fonts"),
+    ("mnist", "models/mnist", "mnist"),
+    ("mnist ImageVAE", "models/baselines/mnist-imagevae", "mnist"),
+    ("emoji", "models/emoji", "emoji"),
+    ("icons", "models/icons", "icons"),
 ]
 # Segments ablation (paper Fig. 5): (label, model folder, dataset, also deformation off at inference?)
 SWEEPS = [
@@ -112,7 +112,7 @@ def main():
     OUT.mkdir(parents=True, exist_ok=True)
 
     results, skipped = {}, []
-    for label, model, ds, table2 in MODELS:
+    for label, model, ds in MODELS:
         if only and ds not in only:
             continue
         if not (ROOT / model / "config.json").is_file() or not (data / ds).is_dir():
@@ -120,7 +120,7 @@ def main():
             continue
         extra = ["--train-data", str(data / ds), "--samples", str(args.samples), "--pairs", str(args.pairs)]
         results[label] = run_eval(label.replace(" ", "-"), ["--model", model, "--data", str(data / ds), "--limit",
-                                                           str(args.limit), *(extra if table2 else [])], args.reuse)
+                                                           str(args.limit), *extra], args.reuse)
         results[label]["model_dir"] = model
 
     sweeps = {}

@@ -21,7 +21,7 @@ the sample deformation on, or switched off at inference (``segments_sweep``)."""
 
 from __future__ import annotations
 
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from pathlib import Path
 
 import numpy as np
@@ -179,11 +179,8 @@ def segments_sweep(model: Im2Vec, files: list[Path], ks: list[int], *, deform: b
         raise ValueError("this model has no sample deformation to switch off")
     rows = []
     for k in ks:
-        if deform:
+        with nullcontext() if deform else deformation_off(model):
             r = reconstruction_l2(model, files, segments=k, outlines=False)
-        else:
-            with deformation_off(model):
-                r = reconstruction_l2(model, files, segments=k, outlines=False)
         rows.append({"k": k, "recon_l2": r["recon_l2"], "recon_l2_stderr": r["recon_l2_stderr"]})
     return rows
 
@@ -244,11 +241,9 @@ def sweep_plot(series: dict[str, list[dict]], title: str = "") -> bytes:
     import io
 
     try:
-        import matplotlib
+        from matplotlib.figure import Figure  # no pyplot: no global backend or figure state
     except ImportError:
         raise Im2VecError("the plot needs matplotlib: pip install 'im2vec[results]'") from None
-    matplotlib.use("Agg")
-    from matplotlib.figure import Figure
 
     fig = Figure(figsize=(5.5, 3.6), dpi=120)
     ax = fig.subplots()

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from .data.folder import fit_square
+from .data.folder import fit_square, resize_square
 from .model.vae import Decoded, Im2Vec
 from .raster.bezier import line_controls
 from .svg import VectorImage, VectorShape, contour_d, from_tensors, rasterize_svg, to_svg
@@ -144,17 +144,12 @@ def vectorize(model: Im2Vec, images: list[torch.Tensor], *, segments: int | str 
 def reconstruct_raster(model, images: list[torch.Tensor]) -> list[torch.Tensor]:
     """The ImageVAE baseline's reconstructions (``z = mu``) of images ``(3, H_i, W_i)``, each
     mapped back to its input's frame (the model square resized to ``max(H, W)`` and cropped)."""
-    import torch.nn.functional as F
-
     dev = next(model.parameters()).device
     xs, places = zip(*(model_input(model, im) for im in images))
     out = model.decode(model.encode(torch.stack(xs).to(dev))[0]).cpu()  # (N, 3, S, S)
     recs = []
     for img, p in zip(out, places):
-        if p.side != img.shape[-1]:
-            down = p.side < img.shape[-1]
-            img = F.interpolate(img[None], size=(p.side, p.side), mode="area" if down else "bilinear",
-                                align_corners=None if down else False)[0]
+        img = resize_square(img, p.side)
         left, top = p.offset
         recs.append(img[:, top : top + p.height, left : left + p.width].clamp(0, 1))
     return recs

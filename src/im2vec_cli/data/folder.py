@@ -26,6 +26,18 @@ def list_images(root: str | Path) -> list[Path]:
     return sorted(p for p in root.rglob("*") if p.suffix.lower() in IMAGE_SUFFIXES and p.is_file())
 
 
+def resize_square(img: torch.Tensor, size: int) -> torch.Tensor:
+    """``(C, S, S)`` -> ``(C, size, size)``: area filter down, bilinear up, unchanged at ``size``."""
+    import torch.nn.functional as F
+
+    s = img.shape[-1]
+    if s == size:
+        return img
+    down = s > size
+    return F.interpolate(img[None], size=(size, size), mode="area" if down else "bilinear",
+                         align_corners=None if down else False)[0]
+
+
 def fit_square(img: torch.Tensor, size: int) -> torch.Tensor:
     """``(3, H, W)`` -> ``(3, size, size)``: pad with white to a centred square, then resize."""
     import torch.nn.functional as F
@@ -35,10 +47,7 @@ def fit_square(img: torch.Tensor, size: int) -> torch.Tensor:
     if h != w:
         top, left = (s - h) // 2, (s - w) // 2
         img = F.pad(img, (left, s - w - left, top, s - h - top), value=1.0)
-    if s != size:
-        img = F.interpolate(img[None], size=(size, size), mode="area" if s > size else "bilinear",
-                            align_corners=None if s > size else False)[0]
-    return img.clamp(0, 1)
+    return resize_square(img, size).clamp(0, 1)
 
 
 def load_folder(

@@ -10,7 +10,7 @@ import torch
 from torch import nn
 
 from ..config import ModelConfig
-from .encoder import Encoder
+from .encoder import Encoder, sample_latent
 
 
 class RasterDecoder(nn.Module):
@@ -55,9 +55,6 @@ class ImageVAE(nn.Module):
 
     def encode(self, images: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """``(B, C, S, S)`` in [0, 1] -> ``mu, logvar (B, D)``."""
-        s = self.config.image_size
-        if images.dim() != 4 or images.shape[1:] != (self.config.channels, s, s):
-            raise ValueError(f"images must be (B, {self.config.channels}, {s}, {s}), got {tuple(images.shape)}")
         return self.encoder(images)
 
     def decode(self, z: torch.Tensor) -> torch.Tensor:
@@ -67,8 +64,7 @@ class ImageVAE(nn.Module):
     def forward(self, images: torch.Tensor, segments: int | None = None, sample: bool = True):
         """Reconstruct a batch (``segments`` is ignored: there are no paths)."""
         mu, logvar = self.encode(images)
-        z = mu + torch.randn_like(mu) * (0.5 * logvar).exp() if sample else mu
-        return self.decode(z), mu, logvar
+        return self.decode(sample_latent(mu, logvar, sample)), mu, logvar
 
 
 def build_model(config: ModelConfig) -> nn.Module:

@@ -12,7 +12,7 @@ from ..config import ModelConfig
 from ..raster import render_paths
 from ..raster.bezier import flatten_closed, polygon_area
 from .decoder import PathCodes, PathDecoder
-from .encoder import Encoder
+from .encoder import Encoder, sample_latent
 from .segments import SegmentPredictor, choose_segments
 
 
@@ -77,9 +77,6 @@ class Im2Vec(nn.Module):
 
     def encode(self, images: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """``(B, C, S, S)`` in [0, 1] -> ``mu, logvar (B, D)``."""
-        s = self.config.image_size
-        if images.dim() != 4 or images.shape[1:] != (self.config.channels, s, s):
-            raise ValueError(f"images must be (B, {self.config.channels}, {s}, {s}), got {tuple(images.shape)}")
         return self.encoder(images)
 
     def decode(self, z: torch.Tensor, segments: int | torch.Tensor | None = None) -> Decoded:
@@ -142,8 +139,7 @@ class Im2Vec(nn.Module):
     def forward(self, images: torch.Tensor, segments: int | None = None, sample: bool = True):
         """Reconstruct a batch. Returns ``(Decoded, mu, logvar)``; ``z = mu`` when not sampling."""
         mu, logvar = self.encode(images)
-        z = mu + torch.randn_like(mu) * (0.5 * logvar).exp() if sample else mu
-        return self.decode(z, segments), mu, logvar
+        return self.decode(sample_latent(mu, logvar, sample), segments), mu, logvar
 
     @staticmethod
     def path_areas(points: torch.Tensor, samples: int = 8) -> torch.Tensor:
