@@ -9,10 +9,12 @@ Coverage of a shape at a pixel is ``sigmoid(sign * min(d, radius) / tau)``, wher
 Speed and memory (issue "Foundation"):
 - the winding number is a scanline count: per row, each edge's crossing is binned and a
   reverse cumulative sum gives every pixel's count, O(N*H*E + N*H*W) instead of O(N*H*W*E);
-- the nearest edge is searched without autograd in a fused ``torch.compile`` kernel over
-  row bands, where only edges whose y-extent comes within ``radius`` of the band are tested;
-- the distance is then recomputed *with* autograd from the one nearest edge per pixel, so
-  autograd memory is O(N*H*W) and the gradient is the closed-form one of that edge.
+- the nearest edge is searched without autograd by fused ``torch.compile`` kernels over
+  tiles, where only edges whose box comes within ``radius`` of the tile are tested; tiles
+  are grouped by candidate count so that crowded tiles do not pad the others;
+- backward is closed form (``_SoftCoverage``, ``_NearestDistance``): only the pixels within
+  ``radius`` of an edge have a gradient, and each passes it to its one nearest edge, so
+  autograd memory is O(N*H*W) and backward costs O(pixels in the band).
 """
 
 from __future__ import annotations
@@ -28,18 +30,26 @@ _EPS = 1e-12
 
 
 @maybe_compile
-def _nearest_kernel(ax, ay, dx, dy, inv, px, py):
-    """Squared distance to the nearest of K edges, and its slot.
+def _nearest_kernel(cand, px, py, sel, r2, num_edges: int):
+    """Nearest of K candidate edges for each pixel of a group of tiles.
 
-    Shapes broadcast to ``(N, nb, M, K)``; the reduction is over K.
+    Args:
+        cand: ``(A, 1, K, 5)`` edges ``[ax, ay, dx, dy, 1/|d|^2]``; px, py: ``(A, M, 1)``
+            pixel centres; sel: ``(A, K)`` edge index of each slot (``num_edges``: padding);
+        r2: 0-d squared culling radius.
+
+    Returns:
+        ``idx (A, M)`` (0 where none is within reach) and ``dist (A, M)`` (``inf`` there).
     """
-    rx = px - ax
-    ry = py - ay
-    t = ((rx * dx + ry * dy) * inv).clamp(0.0, 1.0)
-    qx = rx - t * dx
-    qy = ry - t * dy
-    d2 = qx * qx + qy * qy
-    return torch.min(d2, dim=-1)
+    rx = px - cand[..., 0]
+    ry = py - cand[..., 1]
+    t = ((rx * cand[..., 2] + ry * cand[..., 3]) * cand[..., 4]).clamp(0.0, 1.0)
+    qx = rx - t * cand[..., 2]
+    qy = ry - t * cand[..., 3]
+    d2, slot = torch.min(qx * qx + qy * qy, dim=-1)  # (A, M)
+    idx = torch.gather(sel, 1, slot)
+    none = (idx >= num_edges) | (d2 > r2)
+    return idx.masked_fill(none, 0), torch.sqrt(d2 + _EPS).masked_fill(none, math.inf)
 
 
 def winding_number(a: torch.Tensor, b: torch.Tensor, height: int, width: int) -> torch.Tensor:
@@ -86,6 +96,11 @@ def point_winding(pts: torch.Tensor, a: torch.Tensor, b: torch.Tensor) -> torch.
     Returns:
         ``(N, M)`` winding numbers (float).
     """
+    return _point_winding(pts, a, b)
+
+
+@maybe_compile
+def _point_winding(pts, a, b):
     py, px = pts[..., 1].unsqueeze(-1), pts[..., 0].unsqueeze(-1)  # (N, M, 1)
     ax, ay = a[..., 0].unsqueeze(1), a[..., 1].unsqueeze(1)  # (N, 1, E)
     bx, by = b[..., 0].unsqueeze(1), b[..., 1].unsqueeze(1)
@@ -132,9 +147,86 @@ def boundary_edges(verts: torch.Tensor, shape_index: torch.Tensor | None) -> tor
         return inside[..., :e] != inside[..., e:]
 
 
-def _bucket(k: int) -> int:
-    """Round a candidate count up to a multiple of 8 (the kernel is compiled dynamic)."""
-    return max(8, -(-k // 8) * 8)
+def nearest_edge_search(
+    a: torch.Tensor,
+    b: torch.Tensor,
+    height: int,
+    width: int,
+    *,
+    radius: float = math.inf,
+    tile: int = 8,
+    active: torch.Tensor | None = None,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Nearest edge to every pixel centre and its distance (no autograd).
+
+    The raster is cut into ``tile x tile`` tiles. An edge is a candidate for a tile when its
+    bounding box grown by ``radius`` meets the tile; the test is separable, so the per-tile
+    counts are one small batched matmul of row and column masks. Tiles with no candidate are
+    skipped; the others are grouped by candidate count (rounded up to a multiple of 8) and
+    each group is searched by one fused kernel, so a few crowded tiles do not pad the others.
+
+    Args:
+        a, b: ``(N, E, 2)`` edge end points, pixel frame.
+        height, width: raster size.
+        radius: culling radius in pixels (``math.inf``: every edge is a candidate everywhere).
+        tile: tile side in pixels.
+        active: optional ``(N, E)`` bool; inactive edges are never chosen.
+
+    Returns:
+        ``idx (N, H, W)`` long and ``dist (N, H, W)``. Where no edge comes within ``radius``
+        (or no edge is active), ``dist`` is ``inf`` and ``idx`` is 0.
+    """
+    n, e, _ = a.shape
+    dev, dt = a.device, a.dtype
+    ny, nx = -(-height // tile), -(-width // tile)
+    with torch.no_grad():
+        grow = radius if math.isfinite(radius) else float(height + width) * 4  # every tile meets it
+        lo = torch.minimum(a, b) - grow  # (N, E, 2)
+        hi = torch.maximum(a, b) + grow
+        xs0 = torch.arange(nx, device=dev).to(dt) * tile + 0.5  # first and last pixel centre of a tile
+        ys0 = torch.arange(ny, device=dev).to(dt) * tile + 0.5
+        xs1, ys1 = (xs0 + tile - 1).clamp(max=width - 0.5), (ys0 + tile - 1).clamp(max=height - 0.5)
+        mx = (hi[:, None, :, 0] >= xs0[None, :, None]) & (lo[:, None, :, 0] <= xs1[None, :, None])  # (N, nx, E)
+        my = (hi[:, None, :, 1] >= ys0[None, :, None]) & (lo[:, None, :, 1] <= ys1[None, :, None])  # (N, ny, E)
+        if active is not None:
+            my &= active[:, None, :]
+        counts = torch.bmm(my.to(dt), mx.to(dt).transpose(1, 2)).round_().view(-1)  # (N*ny*nx,)
+        best = torch.zeros(n * ny * nx, tile * tile, dtype=torch.long, device=dev)
+        dist = torch.full((n * ny * nx, tile * tile), math.inf, dtype=dt, device=dev)
+        tiles = torch.nonzero(counts).view(-1)  # (A,) active (path, tile row, tile col)
+        if tiles.numel():
+            d = b - a
+            len2 = (d * d).sum(-1)
+            inv = torch.where(len2 > 0, 1.0 / len2.clamp_min(_EPS), torch.zeros_like(len2))
+            table = torch.stack([a[..., 0], a[..., 1], d[..., 0], d[..., 1], inv], -1)  # (N, E, 5)
+            pad = torch.tensor([_FAR, _FAR, 0.0, 0.0, 0.0], dtype=dt, device=dev).expand(n, 1, 5)
+            table = torch.cat([table, pad], 1).view(-1, 5)  # (N*(E+1), 5): row E parked far away
+            tn, tr, tc = tiles // (ny * nx), tiles // nx % ny, tiles % nx
+            m = my[tn, tr] & mx[tn, tc]  # (A, E)
+            # candidates first: one sort serves every group, each takes its first K slots
+            order = torch.sort(m.to(torch.uint8), dim=1, descending=True, stable=True).indices
+            cap = ((counts[tiles].long() + 7) // 8 * 8).clamp_(max=e)  # (A,)
+            local = torch.arange(tile * tile, device=dev)
+            r2 = torch.tensor(grow * grow, dtype=dt, device=dev)
+            for k in torch.unique(cap).tolist():
+                grp = torch.nonzero(cap == k).view(-1)  # rows of this group in ``tiles``
+                sel = order[grp, :k]  # (A', K)
+                sel = torch.where(torch.gather(m[grp], 1, sel), sel, e)  # slot e: the padding edge
+                cand = table[(tn[grp] * (e + 1)).view(-1, 1) + sel].unsqueeze(1)  # (A', 1, K, 5)
+                py = ((tr[grp] * tile).view(-1, 1) + local // tile).to(dt).add_(0.5).unsqueeze(-1)  # (A', tile^2, 1)
+                px = ((tc[grp] * tile).view(-1, 1) + local % tile).to(dt).add_(0.5).unsqueeze(-1)
+                chunk = _chunk_rows(grp.numel(), tile * tile * k)
+                for s in range(0, grp.numel(), chunk):
+                    sl = slice(s, s + chunk)
+                    i_, d_ = _nearest_kernel(cand[sl], px[sl], py[sl], sel[sl], r2, e)
+                    best[tiles[grp[sl]]] = i_
+                    dist[tiles[grp[sl]]] = d_
+
+        def untile(x):  # (N*ny*nx, tile*tile) -> (N, H, W)
+            x = x.view(n, ny, nx, tile, tile).permute(0, 1, 3, 2, 4).reshape(n, ny * tile, nx * tile)
+            return x[:, :height, :width]
+
+        return untile(best), untile(dist)
 
 
 def nearest_edge(
@@ -147,93 +239,12 @@ def nearest_edge(
     tile: int = 8,
     active: torch.Tensor | None = None,
 ) -> torch.Tensor:
-    """Index of the nearest edge to every pixel centre (no autograd).
+    """Index ``(N, H, W)`` of the nearest edge to every pixel centre (see ``nearest_edge_search``).
 
-    The raster is cut into ``tile x tile`` tiles. An edge is a candidate for a tile when its
-    bounding box grown by ``radius`` meets the tile; tiles with no candidate are skipped, and
-    the others are packed together with their candidates padded to a common count K.
     Pixels farther than ``radius`` from every edge get an arbitrary edge, so the caller must
     clamp their distance to ``radius``.
-
-    Args:
-        a, b: ``(N, E, 2)`` edge end points, pixel frame.
-        height, width: raster size.
-        radius: culling radius in pixels (``math.inf``: every edge is a candidate everywhere).
-        tile: tile side in pixels.
-        active: optional ``(N, E)`` bool; inactive edges are never chosen.
-
-    Returns:
-        ``(N, H, W)`` long edge indices.
     """
-    n, e, _ = a.shape
-    dev, dt = a.device, a.dtype
-    with torch.no_grad():
-        ny, nx = -(-height // tile), -(-width // tile)
-        ty, tx = torch.meshgrid(torch.arange(ny, device=dev), torch.arange(nx, device=dev), indexing="ij")
-        ty, tx = ty.reshape(-1), tx.reshape(-1)  # (T,) tile rows / cols
-        nt = ty.numel()
-        if not math.isfinite(radius):
-            radius = float(height + width) * 4  # a box that every tile meets
-        lo_y = (ty * tile).to(dt) + 0.5  # pixel-centre extent of each tile
-        lo_x = (tx * tile).to(dt) + 0.5
-        box = torch.stack([lo_x, (lo_x + tile - 1).clamp(max=width - 0.5),
-                           lo_y, (lo_y + tile - 1).clamp(max=height - 0.5)], -1)  # (T, 4)
-        act = active if active is not None else torch.ones(n, e, dtype=torch.bool, device=dev)
-        table, mask, counts = _candidates(a, b, act, box, torch.tensor(radius, dtype=dt, device=dev))
-        tiles = torch.nonzero(counts.view(-1)).view(-1)  # (A,) active (path, tile) pairs
-        idx = torch.zeros(n * nt, tile * tile, dtype=torch.long, device=dev)
-        if tiles.numel() and e:
-            k = min(_bucket(int(counts.max().item())), e)
-            act_n, act_t = tiles // nt, tiles % nt
-            m = mask.view(n * nt, e)[tiles]  # (A, E)
-            if k < e:
-                sel = torch.topk(m.to(torch.uint8), k, dim=-1, sorted=False).indices  # (A, K)
-                valid = torch.gather(m, 1, sel)
-            else:
-                sel, valid = torch.arange(e, device=dev).expand(tiles.numel(), e), m
-            sel = torch.where(valid, sel, e)  # slot e of each path is the far-away padding edge
-            cand = table.view(-1, 5)[act_n.view(-1, 1) * (e + 1) + sel]  # (A, K, 5)
-            local = torch.arange(tile, device=dev)
-            py = ((ty[act_t] * tile).view(-1, 1, 1) + local.view(1, tile, 1)).expand(-1, tile, tile)
-            px = ((tx[act_t] * tile).view(-1, 1, 1) + local.view(1, 1, tile)).expand(-1, tile, tile)
-            py = (py.reshape(-1, tile * tile, 1).to(dt) + 0.5)  # (A, tile*tile, 1)
-            px = (px.reshape(-1, tile * tile, 1).to(dt) + 0.5)
-            c = cand.unsqueeze(1)  # (A, 1, K, 5)
-            total = tiles.numel()
-            chunk = _chunk_rows(total, tile * tile * k)
-            slots = []
-            for s in range(0, total, chunk):
-                sl = slice(s, s + chunk)
-                _, slot = _nearest_kernel(c[sl, ..., 0], c[sl, ..., 1], c[sl, ..., 2], c[sl, ..., 3], c[sl, ..., 4],
-                                          px[sl], py[sl])  # (A', tile*tile)
-                slots.append(slot)
-            best = torch.gather(sel, 1, torch.cat(slots, 0)).clamp_(max=e - 1)  # (A, tile*tile)
-            idx[tiles] = best
-        idx = idx.view(n, ny, nx, tile, tile).permute(0, 1, 3, 2, 4).reshape(n, ny * tile, nx * tile)
-        return idx[:, :height, :width]  # (N, H, W)
-
-
-@maybe_compile
-def _candidates(a, b, active, box, radius):
-    """Edge table with a padding row, and which edges are candidates for which tile.
-
-    Returns ``table (N, E+1, 5)`` = ``[ax, ay, dx, dy, 1/|d|^2]`` (row E: an edge parked far
-    away), ``mask (N, T, E)`` and ``counts (N, T)``.
-    """
-    d = b - a
-    len2 = (d * d).sum(-1)
-    inv = torch.where(len2 > 0, 1.0 / len2.clamp_min(_EPS), torch.zeros_like(len2))
-    table = torch.stack([a[..., 0], a[..., 1], d[..., 0], d[..., 1], inv], -1)  # (N, E, 5)
-    pad = torch.tensor([_FAR, _FAR, 0.0, 0.0, 0.0], dtype=a.dtype, device=a.device).expand(a.shape[0], 1, 5)
-    table = torch.cat([table, pad], 1)
-    lo = torch.minimum(a, b) - radius  # (N, E, 2)
-    hi = torch.maximum(a, b) + radius
-    mask = (
-        (hi[:, None, :, 0] >= box[None, :, None, 0]) & (lo[:, None, :, 0] <= box[None, :, None, 1])
-        & (hi[:, None, :, 1] >= box[None, :, None, 2]) & (lo[:, None, :, 1] <= box[None, :, None, 3])
-        & active[:, None, :]
-    )  # (N, T, E)
-    return table, mask, mask.sum(-1)
+    return nearest_edge_search(a, b, height, width, radius=radius, tile=tile, active=active)[0]
 
 
 def _chunk_rows(rows: int, pairs_per_row: int) -> int:
@@ -242,6 +253,138 @@ def _chunk_rows(rows: int, pairs_per_row: int) -> int:
         return rows
     budget = 2**24  # pair elements per eager call (~64 MB per float32 temporary)
     return max(1, budget // max(1, pairs_per_row))
+
+
+def _edge_grads(a, b, idx, sel, g):
+    """Sum the closed-form gradients of ``M`` selected pixels into their nearest edges.
+
+    Args:
+        a, b: ``(N, E, 2)`` edges; idx: ``(N, H, W)`` nearest edge per pixel.
+        sel: ``(M,)`` flat pixel indices into ``(N, H, W)``; g: ``(M,)`` dL/d(distance) there.
+
+    Returns:
+        ``(dL/da, dL/db)``, each ``(N, E, 2)``.
+    """
+    n, e, _ = a.shape
+    h, w = idx.shape[1:]
+    edge = idx.reshape(-1)[sel] + torch.div(sel, h * w, rounding_mode="floor") * e  # (M,) rows of (N*E)
+    ga_gb = _distance_grad(a.reshape(-1, 2)[edge], b.reshape(-1, 2)[edge], sel % (h * w), w, g)  # (M, 4)
+    out = torch.zeros(n * e, 4, dtype=a.dtype, device=a.device).index_add_(0, edge, ga_gb).view(n, e, 4)
+    return out[..., :2], out[..., 2:]
+
+
+class _NearestDistance(torch.autograd.Function):
+    """Distance to the nearest edge, with the closed-form gradient of that one edge.
+
+    Backward visits only pixels whose incoming gradient is non-zero and finite distance,
+    and sums their contributions into the edges with one ``index_add_``. Autograd keeps
+    ``idx`` and ``dist``: O(N*H*W) memory.
+    """
+
+    @staticmethod
+    def forward(ctx, a, b, height, width, radius, active):
+        idx, dist = nearest_edge_search(a, b, height, width, radius=radius, active=active)
+        ctx.save_for_backward(a, b, idx, dist)
+        ctx.mark_non_differentiable(idx)
+        return dist, idx
+
+    @staticmethod
+    def backward(ctx, grad_dist, _grad_idx):
+        a, b, idx, dist = ctx.saved_tensors
+        g = grad_dist.reshape(-1)
+        sel = torch.nonzero((g != 0) & torch.isfinite(dist.reshape(-1))).view(-1)  # (M,) flat pixels
+        ga, gb = _edge_grads(a, b, idx, sel, g[sel])
+        return ga, gb, None, None, None, None
+
+
+class _SoftCoverage(torch.autograd.Function):
+    """``sigmoid(sign * min(d, radius) / tau)`` with ``d`` the distance to the nearest edge.
+
+    One function from edges to coverage, so that backward touches only the band of pixels
+    within ``radius`` of an edge (elsewhere the clamp makes the gradient exactly 0):
+    ``dL/dd = dL/dc * c (1 - c) * sign / tau`` there, then ``_edge_grads``.
+    """
+
+    @staticmethod
+    def forward(ctx, a, b, wind, height, width, radius, tau, evenodd, active):
+        idx, dist = nearest_edge_search(a, b, height, width, radius=radius, active=active)
+        r = torch.tensor(radius, dtype=a.dtype, device=a.device)
+        t = torch.tensor(tau, dtype=a.dtype, device=a.device)
+        cov = shade(dist, wind, r, t, evenodd)
+        ctx.save_for_backward(a, b, idx, dist, wind, cov)
+        ctx.tau, ctx.radius, ctx.fill_rule = tau, radius, "evenodd" if evenodd else "nonzero"
+        return cov
+
+    @staticmethod
+    def backward(ctx, grad_cov):
+        a, b, idx, dist, wind, cov = ctx.saved_tensors
+        sel = torch.nonzero(dist.reshape(-1) < ctx.radius).view(-1)  # (M,) the band
+        c = cov.reshape(-1)[sel]
+        inside = inside_from_winding(wind.reshape(-1)[sel], ctx.fill_rule)
+        sign = torch.where(inside, 1.0 / ctx.tau, -1.0 / ctx.tau).to(c.dtype)
+        ga, gb = _edge_grads(a, b, idx, sel, grad_cov.reshape(-1)[sel] * c * (1 - c) * sign)
+        return ga, gb, None, None, None, None, None, None, None
+
+
+def soft_coverage(
+    a: torch.Tensor,
+    b: torch.Tensor,
+    wind: torch.Tensor,
+    height: int,
+    width: int,
+    *,
+    radius: float,
+    tau: float,
+    fill_rule: str = "nonzero",
+    active: torch.Tensor | None = None,
+) -> torch.Tensor:
+    """Soft coverage ``(N, H, W)`` of closed polylines, differentiable in ``a`` and ``b``.
+
+    Args:
+        a, b: ``(N, E, 2)`` edges, pixel frame; wind: ``(N, H, W)`` their winding numbers.
+        radius: distance clamp and culling radius in pixels; tau: softness in pixels.
+        fill_rule, active: as in ``signed_coverage`` and ``nearest_edge_search``.
+    """
+    inside_from_winding(wind[:0], fill_rule)  # validates fill_rule
+    return _SoftCoverage.apply(a, b, wind, height, width, float(radius), float(tau), fill_rule == "evenodd", active)
+
+
+@maybe_compile
+def _distance_grad(ea, eb, pix, width, g):
+    """Per-pixel ``(dL/da, dL/db)`` ``(M, 4)`` of ``d = |p - a - t (b - a)|``, t clamped to [0, 1].
+
+    ``t`` is the minimiser, so ``dd/dt = 0`` inside and ``t`` is constant where clamped:
+    ``dd/da = -(1 - t) q / d``, ``dd/db = -t q / d`` with ``q = p - a - t (b - a)``.
+    """
+    px = (pix % width).to(ea.dtype) + 0.5
+    py = (pix // width).to(ea.dtype) + 0.5
+    dx, dy = eb[:, 0] - ea[:, 0], eb[:, 1] - ea[:, 1]
+    rx, ry = px - ea[:, 0], py - ea[:, 1]
+    len2 = dx * dx + dy * dy
+    t = torch.where(len2 > 0, (rx * dx + ry * dy) / len2.clamp_min(_EPS), torch.zeros_like(len2)).clamp(0.0, 1.0)
+    qx, qy = rx - t * dx, ry - t * dy
+    s = g / torch.sqrt(qx * qx + qy * qy + _EPS)
+    ux, uy = qx * s, qy * s
+    return torch.stack([-(1 - t) * ux, -(1 - t) * uy, -t * ux, -t * uy], -1)
+
+
+def nearest_distance(
+    a: torch.Tensor,
+    b: torch.Tensor,
+    height: int,
+    width: int,
+    *,
+    radius: float = math.inf,
+    active: torch.Tensor | None = None,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Distance from every pixel centre to the nearest edge, differentiable in ``a`` and ``b``.
+
+    Args and culling as in ``nearest_edge_search``.
+
+    Returns:
+        ``dist (N, H, W)`` (``inf`` beyond ``radius``) and ``idx (N, H, W)``.
+    """
+    return _NearestDistance.apply(a, b, height, width, radius, active)
 
 
 def edge_distance(a: torch.Tensor, b: torch.Tensor, idx: torch.Tensor) -> torch.Tensor:
@@ -276,15 +419,15 @@ def _edge_distance(a, b, idx):
 
 
 @maybe_compile
-def shade(a, b, idx, wind, radius, tau, evenodd: bool):
-    """Soft coverage ``sigmoid(sign * min(d, radius) / tau)`` of ``(N, H, W)`` pixels.
+def shade(dist, wind, radius, tau, evenodd: bool):
+    """Soft coverage ``sigmoid(sign * min(dist, radius) / tau)`` of ``(N, H, W)`` pixels, fused.
 
     Args:
-        a, b: ``(N, E, 2)`` edges; idx ``(N, H, W)`` nearest edge; wind ``(N, H, W)``.
+        dist, wind: ``(N, H, W)`` distance to the nearest edge and winding number.
         radius, tau: 0-d tensors (tensors, so that annealing them does not recompile).
         evenodd: fill rule (else nonzero).
     """
-    return signed_coverage(_edge_distance(a, b, idx), wind, radius, tau, "evenodd" if evenodd else "nonzero")
+    return signed_coverage(dist, wind, radius, tau, "evenodd" if evenodd else "nonzero")
 
 
 def signed_coverage(dist, wind, radius, tau, fill_rule: str) -> torch.Tensor:

@@ -20,7 +20,7 @@ from torch import nn
 
 from .bezier import flatten_closed
 from .composite import composite_over, composite_soft
-from .coverage import boundary_edges, edge_distance, nearest_edge, shade, signed_coverage, winding_number
+from .coverage import boundary_edges, nearest_distance, signed_coverage, soft_coverage, winding_number
 from .pyramid import pyramid_sizes
 
 
@@ -93,17 +93,13 @@ def render_coverage(
         bb = ends[:, order].reshape(b * g, -1, 2)
         act = active[:, order].reshape(b * g, -1) if active is not None else None
         wind = winding_number(a, bb, h, w)
-        idx = nearest_edge(a, bb, h, w, radius=radius, active=act)
-        # distance, sign and sigmoid in one compiled graph (forward and backward fused)
-        r = torch.tensor(radius if math.isfinite(radius) else 1e30, dtype=points.dtype, device=points.device)
-        t = torch.tensor(tau, dtype=points.dtype, device=points.device)
-        return shade(a, bb, idx, wind, r, t, fill_rule == "evenodd").view(b, g, h, w)
+        cov = soft_coverage(a, bb, wind, h, w, radius=radius, tau=tau, fill_rule=fill_rule, active=act)
+        return cov.view(b, g, h, w)
     else:
         a, bb = verts.reshape(b * p, e, 2), ends.reshape(b * p, e, 2)
         act = active.reshape(b * p, e) if active is not None else None
         wind = winding_number(a, bb, h, w).view(b, p, h, w)
-        idx = nearest_edge(a, bb, h, w, radius=radius, active=act)
-        dist = edge_distance(a, bb, idx).view(b, p, h, w)  # (B, P, H, W)
+        dist = nearest_distance(a, bb, h, w, radius=radius, active=act)[0].view(b, p, h, w)  # (B, P, H, W)
         g = counts.numel()
         wind = torch.zeros(b, g, h, w, dtype=wind.dtype, device=wind.device).index_add_(1, sidx, wind)
         member = torch.arange(g, device=points.device).view(g, 1) == sidx.view(1, p)  # (G, P)
