@@ -30,22 +30,21 @@ _EPS = 1e-12
 
 
 @maybe_compile
-def _nearest_kernel(cand, px, py, sel, r2, num_edges: int):
-    """Nearest of K candidate edges for each pixel of a group of tiles.
+def _nearest_kernel(cand, sel, px, py, num_edges: int, r2):
+    """Nearest of a tile's K candidate edges for each of its pixels, for a run of tiles.
 
     Args:
-        cand: ``(A, 1, K, 5)`` edges ``[ax, ay, dx, dy, 1/|d|^2]``; px, py: ``(A, M, 1)``
-            pixel centres; sel: ``(A, K)`` edge index of each slot (``num_edges``: padding);
+        cand: ``(A, 1, K, 5)`` candidate edges ``[ax, ay, dx, dy, 1/|d|^2]``.
+        sel: ``(A, K)`` their edge indices (``num_edges``: a padding edge parked far away).
+        px, py: ``(A, M, 1)`` centres of the tile's pixels.
         r2: 0-d squared culling radius.
 
     Returns:
-        ``idx (A, M)`` (0 where none is within reach) and ``dist (A, M)`` (``inf`` there).
+        ``idx (A, M)`` (0 where no edge is within reach) and ``dist`` (``inf`` there).
     """
-    rx = px - cand[..., 0]
-    ry = py - cand[..., 1]
+    rx, ry = px - cand[..., 0], py - cand[..., 1]
     t = ((rx * cand[..., 2] + ry * cand[..., 3]) * cand[..., 4]).clamp(0.0, 1.0)
-    qx = rx - t * cand[..., 2]
-    qy = ry - t * cand[..., 3]
+    qx, qy = rx - t * cand[..., 2], ry - t * cand[..., 3]
     d2, slot = torch.min(qx * qx + qy * qy, dim=-1)  # (A, M)
     idx = torch.gather(sel, 1, slot)
     none = (idx >= num_edges) | (d2 > r2)
@@ -201,26 +200,31 @@ def nearest_edge_search(
             table = torch.stack([a[..., 0], a[..., 1], d[..., 0], d[..., 1], inv], -1)  # (N, E, 5)
             pad = torch.tensor([_FAR, _FAR, 0.0, 0.0, 0.0], dtype=dt, device=dev).expand(n, 1, 5)
             table = torch.cat([table, pad], 1).view(-1, 5)  # (N*(E+1), 5): row E parked far away
+            cnt = counts[tiles].long()
+            cnt, perm = torch.sort(cnt, stable=True)  # tiles of one group become a contiguous run
+            tiles = tiles[perm]
             tn, tr, tc = tiles // (ny * nx), tiles // nx % ny, tiles % nx
             m = my[tn, tr] & mx[tn, tc]  # (A, E)
             # candidates first: one sort serves every group, each takes its first K slots
             order = torch.sort(m.to(torch.uint8), dim=1, descending=True, stable=True).indices
-            cap = ((counts[tiles].long() + 7) // 8 * 8).clamp_(max=e)  # (A,)
-            local = torch.arange(tile * tile, device=dev)
+            caps, runs = torch.unique_consecutive(((cnt + 7) // 8 * 8).clamp_(max=e), return_counts=True)
             r2 = torch.tensor(grow * grow, dtype=dt, device=dev)
-            for k in torch.unique(cap).tolist():
-                grp = torch.nonzero(cap == k).view(-1)  # rows of this group in ``tiles``
-                sel = order[grp, :k]  # (A', K)
-                sel = torch.where(torch.gather(m[grp], 1, sel), sel, e)  # slot e: the padding edge
-                cand = table[(tn[grp] * (e + 1)).view(-1, 1) + sel].unsqueeze(1)  # (A', 1, K, 5)
-                py = ((tr[grp] * tile).view(-1, 1) + local // tile).to(dt).add_(0.5).unsqueeze(-1)  # (A', tile^2, 1)
-                px = ((tc[grp] * tile).view(-1, 1) + local % tile).to(dt).add_(0.5).unsqueeze(-1)
-                chunk = _chunk_rows(grp.numel(), tile * tile * k)
-                for s in range(0, grp.numel(), chunk):
-                    sl = slice(s, s + chunk)
-                    i_, d_ = _nearest_kernel(cand[sl], px[sl], py[sl], sel[sl], r2, e)
-                    best[tiles[grp[sl]]] = i_
-                    dist[tiles[grp[sl]]] = d_
+            local = torch.arange(tile * tile, device=dev)
+            py = ((tr * tile).unsqueeze(1) + local // tile).to(dt).add_(0.5).unsqueeze(-1)  # (A, tile^2, 1)
+            px = ((tc * tile).unsqueeze(1) + local % tile).to(dt).add_(0.5).unsqueeze(-1)
+            out_i = torch.empty(tiles.numel(), tile * tile, dtype=torch.long, device=dev)
+            out_d = torch.empty(tiles.numel(), tile * tile, dtype=dt, device=dev)
+            start = 0
+            for k, run in zip(caps.tolist(), runs.tolist()):
+                chunk = _chunk_rows(run, tile * tile * k)
+                for s in range(start, start + run, chunk):
+                    sl = slice(s, min(s + chunk, start + run))
+                    sel = torch.where(torch.arange(k, device=dev) < cnt[sl, None], order[sl, :k], e)  # (A', K)
+                    cand = table[(tn[sl] * (e + 1)).unsqueeze(1) + sel].unsqueeze(1)  # (A', 1, K, 5)
+                    out_i[sl], out_d[sl] = _nearest_kernel(cand, sel, px[sl], py[sl], e, r2)
+                start += run
+            best[tiles] = out_i
+            dist[tiles] = out_d
 
         def untile(x):  # (N*ny*nx, tile*tile) -> (N, H, W)
             x = x.view(n, ny, nx, tile, tile).permute(0, 1, 3, 2, 4).reshape(n, ny * tile, nx * tile)
@@ -255,21 +259,11 @@ def _chunk_rows(rows: int, pairs_per_row: int) -> int:
     return max(1, budget // max(1, pairs_per_row))
 
 
-def _edge_grads(a, b, idx, sel, g):
-    """Sum the closed-form gradients of ``M`` selected pixels into their nearest edges.
-
-    Args:
-        a, b: ``(N, E, 2)`` edges; idx: ``(N, H, W)`` nearest edge per pixel.
-        sel: ``(M,)`` flat pixel indices into ``(N, H, W)``; g: ``(M,)`` dL/d(distance) there.
-
-    Returns:
-        ``(dL/da, dL/db)``, each ``(N, E, 2)``.
-    """
+def _sum_into_edges(a, edge, grads):
+    """``(dL/da, dL/db)``, each ``(N, E, 2)``, from per-pixel ``grads (M, 4)`` on ``edge (M,)``
+    (rows of ``a.view(N*E, 2)``)."""
     n, e, _ = a.shape
-    h, w = idx.shape[1:]
-    edge = idx.reshape(-1)[sel] + torch.div(sel, h * w, rounding_mode="floor") * e  # (M,) rows of (N*E)
-    ga_gb = _distance_grad(a.reshape(-1, 2)[edge], b.reshape(-1, 2)[edge], sel % (h * w), w, g)  # (M, 4)
-    out = torch.zeros(n * e, 4, dtype=a.dtype, device=a.device).index_add_(0, edge, ga_gb).view(n, e, 4)
+    out = torch.zeros(n * e, 4, dtype=a.dtype, device=a.device).index_add_(0, edge, grads).view(n, e, 4)
     return out[..., :2], out[..., 2:]
 
 
@@ -293,8 +287,9 @@ class _NearestDistance(torch.autograd.Function):
         a, b, idx, dist = ctx.saved_tensors
         g = grad_dist.reshape(-1)
         sel = torch.nonzero((g != 0) & torch.isfinite(dist.reshape(-1))).view(-1)  # (M,) flat pixels
-        ga, gb = _edge_grads(a, b, idx, sel, g[sel])
-        return ga, gb, None, None, None, None
+        h, w = idx.shape[1:]
+        edge, grads = _band_grads(a.reshape(-1, 2), b.reshape(-1, 2), idx.reshape(-1), sel, g, h * w, w, a.shape[1])
+        return (*_sum_into_edges(a, edge, grads), None, None, None, None)
 
 
 class _SoftCoverage(torch.autograd.Function):
@@ -302,7 +297,7 @@ class _SoftCoverage(torch.autograd.Function):
 
     One function from edges to coverage, so that backward touches only the band of pixels
     within ``radius`` of an edge (elsewhere the clamp makes the gradient exactly 0):
-    ``dL/dd = dL/dc * c (1 - c) * sign / tau`` there, then ``_edge_grads``.
+    ``dL/dd = dL/dc * c (1 - c) * sign / tau`` there, then ``_band_grads_cov``.
     """
 
     @staticmethod
@@ -319,10 +314,12 @@ class _SoftCoverage(torch.autograd.Function):
     def backward(ctx, grad_cov):
         a, b, idx, dist, wind, cov = ctx.saved_tensors
         sel = torch.nonzero(dist.reshape(-1) < ctx.radius).view(-1)  # (M,) the band
-        c = cov.reshape(-1)[sel]
-        inside = inside_from_winding(wind.reshape(-1)[sel], ctx.fill_rule)
-        sign = torch.where(inside, 1.0 / ctx.tau, -1.0 / ctx.tau).to(c.dtype)
-        ga, gb = _edge_grads(a, b, idx, sel, grad_cov.reshape(-1)[sel] * c * (1 - c) * sign)
+        h, w = idx.shape[1:]
+        inv_tau = torch.tensor(1.0 / ctx.tau, dtype=a.dtype, device=a.device)
+        edge, grads = _band_grads_cov(a.reshape(-1, 2), b.reshape(-1, 2), idx.reshape(-1), sel, grad_cov.reshape(-1),
+                                      cov.reshape(-1), wind.reshape(-1), h * w, w, a.shape[1], inv_tau,
+                                      ctx.fill_rule == "evenodd")
+        ga, gb = _sum_into_edges(a, edge, grads)
         return ga, gb, None, None, None, None, None, None, None
 
 
@@ -349,15 +346,15 @@ def soft_coverage(
     return _SoftCoverage.apply(a, b, wind, height, width, float(radius), float(tau), fill_rule == "evenodd", active)
 
 
-@maybe_compile
-def _distance_grad(ea, eb, pix, width, g):
+def _closed_form(ea, eb, pix, width, g):
     """Per-pixel ``(dL/da, dL/db)`` ``(M, 4)`` of ``d = |p - a - t (b - a)|``, t clamped to [0, 1].
 
     ``t`` is the minimiser, so ``dd/dt = 0`` inside and ``t`` is constant where clamped:
     ``dd/da = -(1 - t) q / d``, ``dd/db = -t q / d`` with ``q = p - a - t (b - a)``.
+    ``ea, eb (M, 2)`` the edge of each pixel, ``pix (M,)`` its index in a row-major raster.
     """
     px = (pix % width).to(ea.dtype) + 0.5
-    py = (pix // width).to(ea.dtype) + 0.5
+    py = torch.div(pix, width, rounding_mode="floor").to(ea.dtype) + 0.5
     dx, dy = eb[:, 0] - ea[:, 0], eb[:, 1] - ea[:, 1]
     rx, ry = px - ea[:, 0], py - ea[:, 1]
     len2 = dx * dx + dy * dy
@@ -366,6 +363,28 @@ def _distance_grad(ea, eb, pix, width, g):
     s = g / torch.sqrt(qx * qx + qy * qy + _EPS)
     ux, uy = qx * s, qy * s
     return torch.stack([-(1 - t) * ux, -(1 - t) * uy, -t * ux, -t * uy], -1)
+
+
+@maybe_compile
+def _band_grads(a2, b2, idx, sel, g, hw: int, width: int, num_edges: int):
+    """Closed-form gradients of the pixels ``sel (M,)`` of a flat ``(N*H*W,)`` raster.
+
+    Args: a2, b2 ``(N*E, 2)``; idx ``(N*H*W,)`` nearest edge; g ``(N*H*W,)`` dL/d(distance).
+    Returns ``edge (M,)`` rows of ``a2`` and ``grads (M, 4)``.
+    """
+    edge = idx[sel] + torch.div(sel, hw, rounding_mode="floor") * num_edges
+    return edge, _closed_form(a2[edge], b2[edge], sel % hw, width, g[sel])
+
+
+@maybe_compile
+def _band_grads_cov(a2, b2, idx, sel, grad_cov, cov, wind, hw: int, width: int, num_edges: int, inv_tau,
+                    evenodd: bool):
+    """As ``_band_grads``, from dL/d(coverage): ``dL/dd = dL/dc * c (1 - c) * sign / tau``."""
+    c = cov[sel]
+    inside = inside_from_winding(wind[sel], "evenodd" if evenodd else "nonzero")
+    g = grad_cov[sel] * c * (1 - c) * torch.where(inside, inv_tau, -inv_tau)
+    edge = idx[sel] + torch.div(sel, hw, rounding_mode="floor") * num_edges
+    return edge, _closed_form(a2[edge], b2[edge], sel % hw, width, g)
 
 
 def nearest_distance(
