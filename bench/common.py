@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import resource
+import shutil
 import subprocess
 import sys
+import tempfile
 import time
 
 import torch
@@ -37,10 +40,19 @@ def maxrss_bytes() -> int:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 
 
-def run_child(script: str, *args: str) -> dict:
+def run_child(script: str, *args: str, cold_compile: bool = False) -> dict:
     """Run ``python script args`` and parse the JSON it prints last (a fresh process per
-    measurement keeps peak-memory figures separate)."""
-    out = subprocess.run([sys.executable, script, *args], capture_output=True, text=True)
+    measurement keeps peak-memory figures separate). ``cold_compile`` gives the child an
+    empty inductor cache, so that its first call pays the whole ``torch.compile`` cost."""
+    env = None
+    if cold_compile:
+        cache = tempfile.mkdtemp(prefix="im2vec-inductor-")
+        env = {**os.environ, "TORCHINDUCTOR_CACHE_DIR": cache, "TRITON_CACHE_DIR": os.path.join(cache, "triton")}
+    try:
+        out = subprocess.run([sys.executable, script, *args], capture_output=True, text=True, env=env)
+    finally:
+        if cold_compile:
+            shutil.rmtree(cache, ignore_errors=True)
     if out.returncode != 0:
         return {"error": (out.stderr.strip().splitlines() or ["failed"])[-1]}
     return json.loads(out.stdout.strip().splitlines()[-1])

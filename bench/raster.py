@@ -16,7 +16,7 @@ import torch
 
 sys.path.insert(0, os.path.dirname(__file__))
 from common import maxrss_bytes, run_child, star_paths, timeit  # noqa: E402
-from im2vec_cli.raster import render_paths  # noqa: E402
+from im2vec_cli.raster import render_paths, render_pyramid  # noqa: E402
 from im2vec_cli.raster.bezier import flatten_closed  # noqa: E402
 from im2vec_cli.raster.composite import composite_soft  # noqa: E402
 
@@ -54,6 +54,9 @@ def child(impl: str, size: int, batch: int) -> dict:
     dep = torch.randn(batch, P, requires_grad=True)
     if impl == "ours":
         fwd = lambda: render_paths(pts, cols, dep, size=size, tau=TAU, samples=SAMPLES, composite="soft")
+    elif impl == "pyramid":  # the training workload: every level of a 3-level pyramid rendered directly
+        fwd = lambda: torch.cat([r.flatten() for r in render_pyramid(
+            pts, cols, dep, size=size, levels=3, tau=TAU, samples=SAMPLES, composite="soft")])
     else:
         fwd = lambda: naive_render(pts, cols, dep, size)
     base = maxrss_bytes()
@@ -61,13 +64,13 @@ def child(impl: str, size: int, batch: int) -> dict:
     fwd().sum().backward()
     first = time.perf_counter() - t0
     with torch.no_grad():
-        t_fwd = timeit(fwd, 3 if impl == "naive" else 7)
+        t_fwd = timeit(fwd, 3 if impl == "naive" else 20)
 
     def step():
         pts.grad = None
         fwd().sum().backward()
 
-    t_fb = timeit(step, 3 if impl == "naive" else 7)
+    t_fb = timeit(step, 3 if impl == "naive" else 20)
     peak = maxrss_bytes() - base
     return {"first_call_s": first, "fwd_ms": t_fwd * 1e3, "fwdbwd_ms": t_fb * 1e3, "batch": batch,
             "img_per_s": batch / t_fb, "peak_mib": peak / 2**20}
@@ -79,19 +82,26 @@ def main():
         return
     print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, compile={os.environ.get('IM2VEC_COMPILE', '1')}")
     print(f"workload: B=64, P={P}, S={S} cubic segments, {SAMPLES} lines per cubic, tau={TAU}px, soft composite")
-    hdr = f"{'impl':<7}{'size':>6}{'B':>5}{'first call s':>14}{'fwd ms':>9}{'fwd+bwd ms':>12}{'ms/img':>8}{'img/s':>8}{'peak MiB':>10}"
+    hdr = f"{'impl':<7}{'size':>6}{'B':>5}{'compile s':>14}{'fwd ms':>9}{'fwd+bwd ms':>12}{'ms/img':>8}{'img/s':>8}{'peak MiB':>10}"
+    print("compile s: the first forward+backward of a fresh process with an empty inductor cache")
     print(hdr)
     rows = {}
     for size in (64, 128):
         for impl in ("ours", "naive"):
             batch = 64 if (impl == "ours" or size == 64) else 16  # dense 128^2 at B=64 needs > 24 GiB
-            r = run_child(__file__, "--child", impl, str(size), str(batch))
+            r = run_child(__file__, "--child", impl, str(size), str(batch), cold_compile=True)
             rows[(impl, size)] = r
             if "error" in r:
                 print(f"{impl:<7}{size:>6}{batch:>5}  failed: {r['error']}")
                 continue
             print(f"{impl:<7}{size:>6}{batch:>5}{r['first_call_s']:>14.1f}{r['fwd_ms']:>9.1f}{r['fwdbwd_ms']:>12.1f}"
                   f"{r['fwdbwd_ms'] / batch:>8.2f}{r['img_per_s']:>8.0f}{r['peak_mib']:>10.0f}")
+    r = run_child(__file__, "--child", "pyramid", "64", "64", cold_compile=True)
+    if "error" in r:
+        print(f"pyramid 64/32/16 failed: {r['error']}")
+    else:
+        print(f"{'ours, 3-level pyramid 64/32/16':<18}{r['first_call_s']:>14.1f}{r['fwd_ms']:>9.1f}{r['fwdbwd_ms']:>12.1f}"
+              f"{r['fwdbwd_ms'] / 64:>8.2f}{r['img_per_s']:>8.0f}{r['peak_mib']:>10.0f}")
     for size in (64, 128):
         o, n = rows[("ours", size)], rows[("naive", size)]
         if "error" not in o and "error" not in n:

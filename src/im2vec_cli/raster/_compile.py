@@ -1,8 +1,9 @@
 """``torch.compile`` with an eager fallback, shared by the renderer's hot functions.
 
-``IM2VEC_COMPILE=0`` turns compilation off. Functions are compiled with ``dynamic=True``:
-batch size, segment count and the culling capacity change from call to call, and one
-symbolic compile per function serves them all instead of a recompile per shape.
+``IM2VEC_COMPILE=0`` turns compilation off. Batch size, segment count and the culling
+capacities change from call to call, so those sizes are compiled as symbolic and one graph
+serves them all instead of a recompile per shape; raster sizes and int arguments of the
+pixel kernels are specialised (see ``maybe_compile``).
 """
 
 from __future__ import annotations
@@ -39,8 +40,20 @@ def compile_enabled() -> bool:
     return os.environ.get("IM2VEC_COMPILE", "1").lower() not in ("0", "false", "no", "off")
 
 
-def maybe_compile(fn: Callable) -> Callable:
-    """Wrap ``fn`` so that it runs compiled when enabled, and eagerly otherwise or on failure."""
+def maybe_compile(fn: Callable | None = None, *, dynamic: dict[int, tuple[int, ...]] | None = None):
+    """Wrap ``fn`` so that it runs compiled when enabled, and eagerly otherwise or on failure.
+
+    Args:
+        dynamic: ``{argument position: dims}``, the only tensor dims compiled as symbolic
+            sizes; every other size and every int argument is specialised (one graph per
+            value, e.g. per pyramid level). Symbolic raster sizes in index arithmetic make
+            inductor's CPU loops 3-5x slower, so kernels that index by pixel say which dims
+            truly vary (batch, edge and candidate counts). ``None``: everything symbolic.
+
+    Use as ``@maybe_compile`` or ``@maybe_compile(dynamic={0: (0,)})``.
+    """
+    if fn is None:
+        return functools.partial(maybe_compile, dynamic=dynamic)
     compiled: list[Callable] = []
 
     @functools.wraps(fn)
@@ -49,7 +62,10 @@ def maybe_compile(fn: Callable) -> Callable:
         if not compile_enabled():
             return fn(*args)
         if not compiled:
-            compiled.append(torch.compile(fn, dynamic=True))
+            compiled.append(torch.compile(fn, dynamic=dynamic is None))
+        for pos, dims in (dynamic or {}).items():
+            for d in dims:
+                torch._dynamo.maybe_mark_dynamic(args[pos], d)
         try:
             return compiled[0](*args)
         except torch._dynamo.exc.BackendCompilerFailed:  # pragma: no cover - no working C compiler

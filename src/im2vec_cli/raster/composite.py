@@ -76,7 +76,7 @@ def composite_soft(
     return _soft(coverage, colors, depth, temperature, background)
 
 
-@maybe_compile
+@maybe_compile(dynamic={0: (0,), 1: (0,), 2: (0,)})
 def _soft(coverage, colors, depth, temperature, background):
     # Unrolled over the (few) layers so that the compiled graph is one fused loop per pixel;
     # a batched (B, G, G, H, W) product costs far more, mostly in prod's backward.

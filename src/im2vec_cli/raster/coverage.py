@@ -29,8 +29,8 @@ _FAR = 1.0e6  # padding edges are parked this far away (pixel units)
 _EPS = 1e-12
 
 
-@maybe_compile
-def _nearest_kernel(cand, sel, px, py, num_edges: int, r2):
+@maybe_compile(dynamic={0: (0, 2), 1: (0, 1), 2: (0,), 3: (0,)})
+def _nearest_kernel(cand, sel, px, py, num_edges, r2):
     """Nearest of a tile's K candidate edges for each of its pixels, for a run of tiles.
 
     Args:
@@ -66,8 +66,8 @@ def winding_number(a: torch.Tensor, b: torch.Tensor, height: int, width: int) ->
         return _winding(a, b, height, width)
 
 
-@maybe_compile
-def _winding(a, b, height, width):
+@maybe_compile(dynamic={0: (0, 1), 1: (0, 1)})
+def _winding(a, b, height: int, width: int):
     ax, ay, bx, by = a[..., 0], a[..., 1], b[..., 0], b[..., 1]
     y = torch.arange(height, dtype=a.dtype, device=a.device).add_(0.5).view(1, -1, 1)  # (1, H, 1)
     ay_, by_ = ay.unsqueeze(1), by.unsqueeze(1)  # (N, 1, E)
@@ -81,8 +81,9 @@ def _winding(a, b, height, width):
     last = torch.ceil(xi - 0.5).clamp_(0, width).to(torch.long)  # (N, H, E): bins 0..W
     bins = torch.zeros(a.shape[0], height, width + 1, dtype=a.dtype, device=a.device)
     bins.scatter_add_(2, last, direction)
-    # pixel j sums the bins m >= j + 1
-    return bins.flip(-1).cumsum(-1).flip(-1)[..., 1:]  # (N, H, W)
+    # pixel j sums the bins m >= j + 1; a closed polyline crosses every row as often up as
+    # down, so the bins of a row sum to 0 and that is minus the bins m <= j.
+    return -bins[..., :width].cumsum(-1)  # (N, H, W)
 
 
 def point_winding(pts: torch.Tensor, a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
@@ -98,7 +99,7 @@ def point_winding(pts: torch.Tensor, a: torch.Tensor, b: torch.Tensor) -> torch.
     return _point_winding(pts, a, b)
 
 
-@maybe_compile
+@maybe_compile(dynamic={0: (0, 1), 1: (0, 1), 2: (0, 1)})
 def _point_winding(pts, a, b):
     py, px = pts[..., 1].unsqueeze(-1), pts[..., 0].unsqueeze(-1)  # (N, M, 1)
     ax, ay = a[..., 0].unsqueeze(1), a[..., 1].unsqueeze(1)  # (N, 1, E)
@@ -190,9 +191,11 @@ def nearest_edge_search(
         if active is not None:
             my &= active[:, None, :]
         counts = torch.bmm(my.to(dt), mx.to(dt).transpose(1, 2)).round_().view(-1)  # (N*ny*nx,)
-        best = torch.zeros(n * ny * nx, tile * tile, dtype=torch.long, device=dev)
-        dist = torch.full((n * ny * nx, tile * tile), math.inf, dtype=dt, device=dev)
         tiles = torch.nonzero(counts).view(-1)  # (A,) active (path, tile row, tile col)
+        # per tile, its row in out_i / out_d; row A is the answer for tiles without candidates
+        pos = torch.full((n * ny * nx,), tiles.numel(), dtype=torch.long, device=dev)
+        out_i = torch.zeros(tiles.numel() + 1, tile * tile, dtype=torch.long, device=dev)
+        out_d = torch.full((tiles.numel() + 1, tile * tile), math.inf, dtype=dt, device=dev)
         if tiles.numel():
             d = b - a
             len2 = (d * d).sum(-1)
@@ -209,11 +212,10 @@ def nearest_edge_search(
             order = torch.sort(m.to(torch.uint8), dim=1, descending=True, stable=True).indices
             caps, runs = torch.unique_consecutive(((cnt + 7) // 8 * 8).clamp_(max=e), return_counts=True)
             r2 = torch.tensor(grow * grow, dtype=dt, device=dev)
+            num_e = torch.tensor(e, device=dev)  # a tensor: a new segment count must not recompile
             local = torch.arange(tile * tile, device=dev)
             py = ((tr * tile).unsqueeze(1) + local // tile).to(dt).add_(0.5).unsqueeze(-1)  # (A, tile^2, 1)
             px = ((tc * tile).unsqueeze(1) + local % tile).to(dt).add_(0.5).unsqueeze(-1)
-            out_i = torch.empty(tiles.numel(), tile * tile, dtype=torch.long, device=dev)
-            out_d = torch.empty(tiles.numel(), tile * tile, dtype=dt, device=dev)
             start = 0
             for k, run in zip(caps.tolist(), runs.tolist()):
                 chunk = _chunk_rows(run, tile * tile * k)
@@ -221,16 +223,23 @@ def nearest_edge_search(
                     sl = slice(s, min(s + chunk, start + run))
                     sel = torch.where(torch.arange(k, device=dev) < cnt[sl, None], order[sl, :k], e)  # (A', K)
                     cand = table[(tn[sl] * (e + 1)).unsqueeze(1) + sel].unsqueeze(1)  # (A', 1, K, 5)
-                    out_i[sl], out_d[sl] = _nearest_kernel(cand, sel, px[sl], py[sl], e, r2)
+                    out_i[sl], out_d[sl] = _nearest_kernel(cand, sel, px[sl], py[sl], num_e, r2)
                 start += run
-            best[tiles] = out_i
-            dist[tiles] = out_d
+            pos[tiles] = torch.arange(tiles.numel(), device=dev)
+        return _untile(out_i, out_d, pos.view(n, ny, nx), tile, height, width)
 
-        def untile(x):  # (N*ny*nx, tile*tile) -> (N, H, W)
-            x = x.view(n, ny, nx, tile, tile).permute(0, 1, 3, 2, 4).reshape(n, ny * tile, nx * tile)
-            return x[:, :height, :width]
 
-        return untile(best), untile(dist)
+@maybe_compile(dynamic={0: (0,), 1: (0,), 2: (0,)})
+def _untile(out_i, out_d, pos, tile: int, height: int, width: int):
+    """``(A+1, tile*tile)`` per-tile results -> ``(N, H, W)`` rasters, in one gather.
+
+    ``pos (N, ny, nx)`` is the row of each tile in ``out_i`` / ``out_d``.
+    """
+    y = torch.arange(height, device=pos.device)
+    x = torch.arange(width, device=pos.device)
+    rows = pos[:, (y // tile).view(-1, 1), (x // tile).view(1, -1)]  # (N, H, W)
+    flat = rows * (tile * tile) + ((y % tile).view(-1, 1) * tile + (x % tile).view(1, -1))
+    return out_i.view(-1)[flat], out_d.view(-1)[flat]
 
 
 def nearest_edge(
@@ -288,7 +297,8 @@ class _NearestDistance(torch.autograd.Function):
         g = grad_dist.reshape(-1)
         sel = torch.nonzero((g != 0) & torch.isfinite(dist.reshape(-1))).view(-1)  # (M,) flat pixels
         h, w = idx.shape[1:]
-        edge, grads = _band_grads(a.reshape(-1, 2), b.reshape(-1, 2), idx.reshape(-1), sel, g, h * w, w, a.shape[1])
+        edge, grads = _band_grads(a.reshape(-1, 2), b.reshape(-1, 2), idx.reshape(-1), sel, g, h * w, w,
+                                   torch.tensor(a.shape[1], device=a.device))
         return (*_sum_into_edges(a, edge, grads), None, None, None, None)
 
 
@@ -317,7 +327,8 @@ class _SoftCoverage(torch.autograd.Function):
         h, w = idx.shape[1:]
         inv_tau = torch.tensor(1.0 / ctx.tau, dtype=a.dtype, device=a.device)
         edge, grads = _band_grads_cov(a.reshape(-1, 2), b.reshape(-1, 2), idx.reshape(-1), sel, grad_cov.reshape(-1),
-                                      cov.reshape(-1), wind.reshape(-1), h * w, w, a.shape[1], inv_tau,
+                                      cov.reshape(-1), wind.reshape(-1), h * w, w,
+                                      torch.tensor(a.shape[1], device=a.device), inv_tau,
                                       ctx.fill_rule == "evenodd")
         ga, gb = _sum_into_edges(a, edge, grads)
         return ga, gb, None, None, None, None, None, None, None
@@ -365,8 +376,8 @@ def _closed_form(ea, eb, pix, width, g):
     return torch.stack([-(1 - t) * ux, -(1 - t) * uy, -t * ux, -t * uy], -1)
 
 
-@maybe_compile
-def _band_grads(a2, b2, idx, sel, g, hw: int, width: int, num_edges: int):
+@maybe_compile(dynamic={0: (0,), 1: (0,), 2: (0,), 3: (0,), 4: (0,)})
+def _band_grads(a2, b2, idx, sel, g, hw: int, width: int, num_edges):
     """Closed-form gradients of the pixels ``sel (M,)`` of a flat ``(N*H*W,)`` raster.
 
     Args: a2, b2 ``(N*E, 2)``; idx ``(N*H*W,)`` nearest edge; g ``(N*H*W,)`` dL/d(distance).
@@ -376,8 +387,8 @@ def _band_grads(a2, b2, idx, sel, g, hw: int, width: int, num_edges: int):
     return edge, _closed_form(a2[edge], b2[edge], sel % hw, width, g[sel])
 
 
-@maybe_compile
-def _band_grads_cov(a2, b2, idx, sel, grad_cov, cov, wind, hw: int, width: int, num_edges: int, inv_tau,
+@maybe_compile(dynamic={0: (0,), 1: (0,), 2: (0,), 3: (0,), 4: (0,), 5: (0,), 6: (0,)})
+def _band_grads_cov(a2, b2, idx, sel, grad_cov, cov, wind, hw: int, width: int, num_edges, inv_tau,
                     evenodd: bool):
     """As ``_band_grads``, from dL/d(coverage): ``dL/dd = dL/dc * c (1 - c) * sign / tau``."""
     c = cov[sel]
@@ -437,7 +448,7 @@ def _edge_distance(a, b, idx):
     return dist.reshape(n, h, w)
 
 
-@maybe_compile
+@maybe_compile(dynamic={0: (0,), 1: (0,)})
 def shade(dist, wind, radius, tau, evenodd: bool):
     """Soft coverage ``sigmoid(sign * min(dist, radius) / tau)`` of ``(N, H, W)`` pixels, fused.
 
