@@ -110,6 +110,32 @@ def test_cli_train_skips_unreadable_files(tmp_path, shapes):
     assert (tmp_path / "run" / "model" / "config.json").is_file()
 
 
+def test_cli_train_init_fine_tunes_from_a_model(tmp_path, shapes):
+    from click.testing import CliRunner
+
+    from im2vec_cli.checkpoint import from_pretrained
+    from im2vec_cli.cli import cli
+
+    d = _png_folder(tmp_path / "data", shapes[:12])
+    cfg = tmp_path / "cfg.json"
+    cfg.write_text(json.dumps({"model": MODEL.to_dict(), "train": {"val_every": 100, "log_every": 1}}))
+    base = ["train", str(d), "--steps", "1", "--batch", "4", "--device", "cpu"]
+    res = CliRunner().invoke(cli, [*base, "--out", str(tmp_path / "a"), "--config", str(cfg), "--seed", "1"])
+    assert res.exit_code == 0, res.output
+    start = from_pretrained(tmp_path / "a" / "model")
+    # a tiny learning rate: one step from the init weights stays next to them, unlike a fresh init
+    res = CliRunner().invoke(cli, [*base, "--out", str(tmp_path / "b"), "--init", str(tmp_path / "a" / "model"),
+                                   "--lr", "1e-9", "--seed", "2"])
+    assert res.exit_code == 0, res.output
+    tuned = from_pretrained(tmp_path / "b" / "model")
+    assert tuned.config == start.config
+    for (name, p0), p1 in zip(start.state_dict().items(), tuned.state_dict().values()):
+        assert torch.allclose(p0.float(), p1.float(), atol=1e-3), name
+    res = CliRunner().invoke(cli, [*base, "--out", str(tmp_path / "c"), "--init", str(tmp_path / "a" / "model"),
+                                   "--paths", "3"])
+    assert res.exit_code == 2 and "--init takes the model options" in res.output
+
+
 def test_ddp_two_cpu_processes(tmp_path, shapes):
 
     d = _png_folder(tmp_path / "data", shapes[:16])

@@ -157,9 +157,12 @@ def _device_option(f):
 @click.option("--seed", type=int, help="Random seed. [0]")
 @click.option("--workers", type=click.IntRange(1), help="Image loading threads. [2]")
 @click.option("--resume", is_flag=True, help="Continue exactly from RUN/checkpoint.pt.")
+@click.option("--init", "init_model", default=None, metavar="NAME|DIR",
+              help="Fine-tune: start from this model's weights (a shipped name or a model folder), with a "
+                   "fresh optimiser and schedule; the model options come from it.")
 @_device_option
 def train(data_dir, run_dir, val_dir, config_file, arch, size, paths, latent, grouping, batch, steps, epochs, lr,
-          beta, seed, workers, resume, device):
+          beta, seed, workers, resume, init_model, device):
     """Train an Im2Vec model on a folder of images (PNG/JPG, searched recursively).
 
     A folder made by `im2vec data` (with train/ and val/) uses its own split. Unreadable
@@ -189,6 +192,16 @@ def train(data_dir, run_dir, val_dir, config_file, arch, size, paths, latent, gr
             t[key] = val
     model_cfg, train_cfg = ModelConfig.from_dict(m), TrainConfig.from_dict(t)
     dev = resolve_device(device)
+    init_state = None
+    if init_model is not None:
+        if resume:
+            raise click.UsageError("--init starts a new run; --resume continues one: give one of them")
+        if m:
+            raise click.UsageError("--init takes the model options from the model; drop " + ", ".join(sorted(m)))
+        from .checkpoint import from_pretrained
+
+        start = from_pretrained(init_model, "cpu")
+        model_cfg, init_state = start.config, start.state_dict()
     import signal
 
     def _term(signum, frame):  # `kill` (and SIGINT-ignoring background jobs) checkpoint like Ctrl-C
@@ -218,7 +231,7 @@ def train(data_dir, run_dir, val_dir, config_file, arch, size, paths, latent, gr
             click.echo(f"step {e['step']}: val pyramid L2 {e['val_pyramid_l2']:.5f}, MSE {e['val_mse']:.5f}", err=True)
 
     out = run_train(data_dir, run_dir, model_cfg, train_cfg, device=dev, val_dir=val_dir, resume=resume,
-                    on_event=on_event, epochs=epochs)
+                    on_event=on_event, epochs=epochs, init_state=init_state)
     if "b" in bar:
         bar["b"].close()
     import os

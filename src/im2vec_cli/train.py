@@ -172,6 +172,7 @@ def train(
     on_event: Callable[[dict], None] | None = None,
     images: torch.Tensor | None = None,
     epochs: float | None = None,
+    init_state: dict[str, torch.Tensor] | None = None,
 ) -> Path:
     """Train an Im2Vec model (or the ImageVAE baseline, ``model_cfg.arch``); returns the
     exported model folder ``RUN/model``.
@@ -179,7 +180,8 @@ def train(
     Under ``torchrun`` (``WORLD_SIZE`` > 1) it runs DDP (gloo on CPU, nccl on CUDA); each
     rank draws its own batches and only rank 0 writes files. ``images`` (uint8
     ``(N, 3, S, S)``) bypasses the folder loading, for tests. ``epochs`` overrides
-    ``train_cfg.steps`` by passes over the training images.
+    ``train_cfg.steps`` by passes over the training images. ``init_state`` (a state dict of
+    the same config) starts from trained weights with a fresh optimiser: fine-tuning.
     """
     emit = on_event or (lambda e: None)
     run_dir = Path(run_dir)
@@ -219,6 +221,8 @@ def train(
     # ---- model and optimiser
     torch.manual_seed(train_cfg.seed)
     model = build_model(model_cfg).to(device)
+    if init_state is not None:
+        model.load_state_dict({k: v.to(dtype=model.state_dict()[k].dtype) for k, v in init_state.items()})
     opt = Lookahead(torch.optim.RAdam(model.parameters(), lr=train_cfg.lr), train_cfg.lookahead_k,
                     train_cfg.lookahead_alpha)
     gen = torch.Generator().manual_seed(train_cfg.seed * 1000 + rank)
