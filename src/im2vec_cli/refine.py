@@ -18,14 +18,13 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-import numpy as np
 import torch
 import torch.nn.functional as F
 
 from .infer import Placement, flat_vector, model_input, segment_counts, to_vector, uniform_color
 from .model.vae import Im2Vec
 from .raster import gaussian_pyramid, pyramid_l2, render_pyramid
-from .raster.bezier import segment_controls
+from .raster.bezier import polygon_area, segment_controls
 from .simplify import simplify
 from .svg import VectorImage, VectorShape
 
@@ -217,7 +216,7 @@ class _Fitter:
             return vec
         current = self.vector_loss(vec, self.s.tau_end)
         order = sorted(((gi, ci) for gi, sh in enumerate(vec.shapes) for ci in range(len(sh.contours))),
-                       key=lambda gc: abs(_area(vec.shapes[gc[0]].contours[gc[1]])))
+                       key=lambda gc: abs(_anchor_area(vec.shapes[gc[0]].contours[gc[1]])))
         removed: set[tuple[int, int]] = set()
         for gc in order:
             trial = _without(vec, removed | {gc})
@@ -230,10 +229,9 @@ class _Fitter:
         return _without(vec, removed)
 
 
-def _area(c) -> float:
+def _anchor_area(c) -> float:
     """Area of a contour's anchor polygon (px^2): enough to order paths by size."""
-    x, y = c[0::3, 0], c[0::3, 1]
-    return 0.5 * float((x * np.roll(y, -1) - np.roll(x, -1) * y).sum())
+    return abs(float(polygon_area(torch.as_tensor(c[0::3]))))
 
 
 def _without(vec: VectorImage, removed: set[tuple[int, int]]) -> VectorImage:
