@@ -117,7 +117,12 @@ def test_winding_scanline_matches_bruteforce():
     assert torch.equal(wind, ref)
 
 
-def test_culled_nearest_edge_matches_dense():
+@pytest.mark.parametrize("grouped", [False, True])
+def test_culled_nearest_edge_matches_dense(monkeypatch, grouped):
+    import im2vec_cli.raster.coverage as coverage
+
+    if grouped:  # tiles searched in groups by candidate count, as in large batches
+        monkeypatch.setattr(coverage, "_SMALL_SEARCH", 0)
     g = torch.Generator().manual_seed(0)
     pts = torch.stack([star(20 + 5 * i, 22, 15, 6, 6, generator=g) for i in range(3)]) / 40  # (3, 36, 2)
     from im2vec_cli.raster.bezier import flatten_closed
@@ -125,10 +130,18 @@ def test_culled_nearest_edge_matches_dense():
 
     a = flatten_closed(pts * 40, 4)
     b = torch.roll(a, -1, 1)
+    # brute force: every pixel against every edge
+    c = torch.arange(40, dtype=a.dtype) + 0.5
+    py, px = torch.meshgrid(c, c, indexing="ij")
+    r = torch.stack([px, py], -1).view(1, 40, 40, 1, 2) - a.view(3, 1, 1, -1, 2)
+    d = (b - a).view(3, 1, 1, -1, 2)
+    t = ((r * d).sum(-1) / (d * d).sum(-1)).clamp(0, 1)
+    brute = (r - t.unsqueeze(-1) * d).norm(dim=-1).min(-1).values  # (3, 40, 40)
     dense = edge_distance(a, b, nearest_edge(a, b, 40, 40, radius=math.inf))
     culled = edge_distance(a, b, nearest_edge(a, b, 40, 40, radius=3.0))
-    near = dense <= 3.0
-    assert torch.allclose(dense[near], culled[near])
+    near = brute <= 3.0
+    assert torch.allclose(dense, brute, atol=1e-6)
+    assert torch.allclose(culled[near], brute[near], atol=1e-6)
     assert (culled[~near] > 3.0).all()
 
 

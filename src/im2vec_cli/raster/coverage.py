@@ -27,6 +27,7 @@ from ._compile import compile_enabled, maybe_compile
 
 _FAR = 1.0e6  # padding edges are parked this far away (pixel units)
 _EPS = 1e-12
+_SMALL_SEARCH = 2**20  # pixel x edge pairs below which the nearest-edge search is one group
 
 
 @maybe_compile(dynamic={0: (0, 2), 1: (0, 1), 2: (0,), 3: (0,)})
@@ -210,14 +211,19 @@ def nearest_edge_search(
             m = my[tn, tr] & mx[tn, tc]  # (A, E)
             # candidates first: one sort serves every group, each takes its first K slots
             order = torch.sort(m.to(torch.uint8), dim=1, descending=True, stable=True).indices
-            caps, runs = torch.unique_consecutive(((cnt + 7) // 8 * 8).clamp_(max=e), return_counts=True)
+            cap = ((cnt + 7) // 8 * 8).clamp_(max=e)  # (A,) candidate slots, ascending
+            if tiles.numel() * tile * tile * e <= _SMALL_SEARCH:  # one group: fewer calls beat less padding
+                groups = [(int(cap[-1]), tiles.numel())]
+            else:
+                caps, runs = torch.unique_consecutive(cap, return_counts=True)
+                groups = list(zip(caps.tolist(), runs.tolist()))
             r2 = torch.tensor(grow * grow, dtype=dt, device=dev)
             num_e = torch.tensor(e, device=dev)  # a tensor: a new segment count must not recompile
             local = torch.arange(tile * tile, device=dev)
             py = ((tr * tile).unsqueeze(1) + local // tile).to(dt).add_(0.5).unsqueeze(-1)  # (A, tile^2, 1)
             px = ((tc * tile).unsqueeze(1) + local % tile).to(dt).add_(0.5).unsqueeze(-1)
             start = 0
-            for k, run in zip(caps.tolist(), runs.tolist()):
+            for k, run in groups:
                 chunk = _chunk_rows(run, tile * tile * k)
                 for s in range(start, start + run, chunk):
                     sl = slice(s, min(s + chunk, start + run))
