@@ -231,7 +231,7 @@ class _Fitter:
 
 def _anchor_area(c) -> float:
     """Area of a contour's anchor polygon (px^2): enough to order paths by size."""
-    return abs(float(polygon_area(torch.as_tensor(c[0::3]))))
+    return float(polygon_area(torch.as_tensor(c[0::3])))
 
 
 def _without(vec: VectorImage, removed: set[tuple[int, int]]) -> VectorImage:

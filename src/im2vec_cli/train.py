@@ -222,7 +222,7 @@ def train(
     torch.manual_seed(train_cfg.seed)
     model = build_model(model_cfg).to(device)
     if init_state is not None:
-        model.load_state_dict({k: v.to(dtype=model.state_dict()[k].dtype) for k, v in init_state.items()})
+        model.load_state_dict(init_state)  # copies into the parameters, casting fp16 storage
     opt = Lookahead(torch.optim.RAdam(model.parameters(), lr=train_cfg.lr), train_cfg.lookahead_k,
                     train_cfg.lookahead_alpha)
     gen = torch.Generator().manual_seed(train_cfg.seed * 1000 + rank)

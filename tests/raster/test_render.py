@@ -15,7 +15,7 @@ from im2vec_cli.raster import (
     render_paths,
     render_pyramid,
 )
-from im2vec_cli.raster.coverage import nearest_edge, winding_number
+from im2vec_cli.raster.coverage import nearest_edge_search, winding_number
 from im2vec_cli.svg import VectorImage, VectorShape, rasterize_svg, to_svg, to_tensors
 from tests.helpers import circle, polyline_as_cubic, star
 
@@ -137,8 +137,8 @@ def test_culled_nearest_edge_matches_dense(monkeypatch, grouped):
     d = (b - a).view(3, 1, 1, -1, 2)
     t = ((r * d).sum(-1) / (d * d).sum(-1)).clamp(0, 1)
     brute = (r - t.unsqueeze(-1) * d).norm(dim=-1).min(-1).values  # (3, 40, 40)
-    dense = edge_distance(a, b, nearest_edge(a, b, 40, 40, radius=math.inf))
-    culled = edge_distance(a, b, nearest_edge(a, b, 40, 40, radius=3.0))
+    dense = edge_distance(a, b, nearest_edge_search(a, b, 40, 40, radius=math.inf)[0])
+    culled = edge_distance(a, b, nearest_edge_search(a, b, 40, 40, radius=3.0)[0])
     near = brute <= 3.0
     assert torch.allclose(dense, brute, atol=1e-6)
     assert torch.allclose(culled[near], brute[near], atol=1e-6)

@@ -248,24 +248,6 @@ def _untile(out_i, out_d, pos, tile: int, height: int, width: int):
     return out_i.view(-1)[flat], out_d.view(-1)[flat]
 
 
-def nearest_edge(
-    a: torch.Tensor,
-    b: torch.Tensor,
-    height: int,
-    width: int,
-    *,
-    radius: float = math.inf,
-    tile: int = 8,
-    active: torch.Tensor | None = None,
-) -> torch.Tensor:
-    """Index ``(N, H, W)`` of the nearest edge to every pixel centre (see ``nearest_edge_search``).
-
-    Pixels farther than ``radius`` from every edge get an arbitrary edge, so the caller must
-    clamp their distance to ``radius``.
-    """
-    return nearest_edge_search(a, b, height, width, radius=radius, tile=tile, active=active)[0]
-
-
 def _chunk_rows(rows: int, pairs_per_row: int) -> int:
     """Rows per kernel call: the compiled kernel fuses the reduction, eager does not."""
     if compile_enabled():
@@ -323,7 +305,7 @@ class _SoftCoverage(torch.autograd.Function):
         t = torch.tensor(tau, dtype=a.dtype, device=a.device)
         cov = shade(dist, wind, r, t, evenodd)
         ctx.save_for_backward(a, b, idx, dist, wind, cov)
-        ctx.tau, ctx.radius, ctx.fill_rule = tau, radius, "evenodd" if evenodd else "nonzero"
+        ctx.tau, ctx.radius, ctx.evenodd = tau, radius, evenodd
         return cov
 
     @staticmethod
@@ -334,8 +316,7 @@ class _SoftCoverage(torch.autograd.Function):
         inv_tau = torch.tensor(1.0 / ctx.tau, dtype=a.dtype, device=a.device)
         edge, grads = _band_grads_cov(a.reshape(-1, 2), b.reshape(-1, 2), idx.reshape(-1), sel, grad_cov.reshape(-1),
                                       cov.reshape(-1), wind.reshape(-1), h * w, w,
-                                      torch.tensor(a.shape[1], device=a.device), inv_tau,
-                                      ctx.fill_rule == "evenodd")
+                                      torch.tensor(a.shape[1], device=a.device), inv_tau, ctx.evenodd)
         ga, gb = _sum_into_edges(a, edge, grads)
         return ga, gb, None, None, None, None, None, None, None
 
@@ -382,6 +363,13 @@ def _closed_form(ea, eb, pix, width, g):
     return torch.stack([-(1 - t) * ux, -(1 - t) * uy, -t * ux, -t * uy], -1)
 
 
+def _gather_closed_form(a2, b2, idx, sel, hw: int, width: int, num_edges, g_sel):
+    """``edge (M,)`` rows of ``a2`` nearest to the flat pixels ``sel (M,)`` and their
+    ``_closed_form`` gradients ``(M, 4)`` for ``g_sel (M,)`` = dL/d(distance) there."""
+    edge = idx[sel] + torch.div(sel, hw, rounding_mode="floor") * num_edges
+    return edge, _closed_form(a2[edge], b2[edge], sel % hw, width, g_sel)
+
+
 @maybe_compile(dynamic={0: (0,), 1: (0,), 2: (0,), 3: (0,), 4: (0,)})
 def _band_grads(a2, b2, idx, sel, g, hw: int, width: int, num_edges):
     """Closed-form gradients of the pixels ``sel (M,)`` of a flat ``(N*H*W,)`` raster.
@@ -389,8 +377,7 @@ def _band_grads(a2, b2, idx, sel, g, hw: int, width: int, num_edges):
     Args: a2, b2 ``(N*E, 2)``; idx ``(N*H*W,)`` nearest edge; g ``(N*H*W,)`` dL/d(distance).
     Returns ``edge (M,)`` rows of ``a2`` and ``grads (M, 4)``.
     """
-    edge = idx[sel] + torch.div(sel, hw, rounding_mode="floor") * num_edges
-    return edge, _closed_form(a2[edge], b2[edge], sel % hw, width, g[sel])
+    return _gather_closed_form(a2, b2, idx, sel, hw, width, num_edges, g[sel])
 
 
 @maybe_compile(dynamic={0: (0,), 1: (0,), 2: (0,), 3: (0,), 4: (0,), 5: (0,), 6: (0,)})
@@ -400,8 +387,7 @@ def _band_grads_cov(a2, b2, idx, sel, grad_cov, cov, wind, hw: int, width: int, 
     c = cov[sel]
     inside = inside_from_winding(wind[sel], "evenodd" if evenodd else "nonzero")
     g = grad_cov[sel] * c * (1 - c) * torch.where(inside, inv_tau, -inv_tau)
-    edge = idx[sel] + torch.div(sel, hw, rounding_mode="floor") * num_edges
-    return edge, _closed_form(a2[edge], b2[edge], sel % hw, width, g)
+    return _gather_closed_form(a2, b2, idx, sel, hw, width, num_edges, g)
 
 
 def nearest_distance(
