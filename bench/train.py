@@ -1,4 +1,6 @@
-"""Training-step benchmark (issue "The Im2Vec model"): images/s at B=64, 64^2, P=4, k=16.
+"""Training-step benchmark (issue "The Im2Vec model"): images/s at B=64, 64^2, P=4, k=16,
+and the shipped MNIST model's 32^2, P=3, k=12 step with and without a supersampled finest
+loss level (``TrainConfig.supersample``), side by side.
 
 Prints compile time apart from steady state, and a per-phase breakdown of one step.
 Run: ``python bench/train.py`` (``make bench``).
@@ -19,29 +21,33 @@ from im2vec_cli.model.vae import Im2Vec, kl_divergence  # noqa: E402
 from im2vec_cli.raster import gaussian_pyramid, pyramid_l2, render_pyramid  # noqa: E402
 from im2vec_cli.train import Lookahead  # noqa: E402
 
-B, K = 64, 16
+B = 64
+MNIST = ModelConfig(palette="#000000", paths=3, image_size=32, fit="pad", min_segments=8, max_segments=16)
 
-
+# name: (model config, k, supersample)
 CONFIGS = {
-    "default (shipped fonts model)": ModelConfig(palette="#000000"),
-    "lean (enc 16, dec 96x3, LSTM 64)": ModelConfig(palette="#000000", enc_width=16, dec_width=96, dec_layers=3,
-                                                    lstm_hidden=64),
+    "default (shipped fonts model)": (ModelConfig(palette="#000000"), 16, 1),
+    "lean (enc 16, dec 96x3, LSTM 64)": (ModelConfig(palette="#000000", enc_width=16, dec_width=96, dec_layers=3,
+                                                     lstm_hidden=64), 16, 1),
+    "mnist (32^2, P=3)": (MNIST, 12, 1),
+    "mnist, supersample=4 (finest level from 128^2)": (MNIST, 12, 4),
 }
 
 
 def main():
     print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, compile={os.environ.get('IM2VEC_COMPILE', '1')}")
-    for name, cfg in CONFIGS.items():
+    for name, (cfg, k, ss) in CONFIGS.items():
         print(f"== {name}")
-        measure(cfg)
+        measure(cfg, k, ss)
 
 
-def measure(cfg: ModelConfig):
+def measure(cfg: ModelConfig, k: int, supersample: int):
     tcfg = TrainConfig()
     torch.manual_seed(0)
     model = Im2Vec(cfg)
     opt = Lookahead(torch.optim.RAdam(model.parameters(), lr=tcfg.lr), tcfg.lookahead_k, tcfg.lookahead_alpha)
-    x = (torch.rand(B, 3, 64, 64) > 0.7).float()
+    size = cfg.image_size
+    x = (torch.rand(B, 3, size, size) > 0.7).float()
     target = gaussian_pyramid(x, cfg.levels)
     times: dict[str, float] = {}
 
@@ -50,11 +56,11 @@ def measure(cfg: ModelConfig):
         mu, logvar = model.encode(x)
         z = mu + torch.randn_like(mu) * (0.5 * logvar).exp()
         t.append(time.perf_counter())
-        dec = model.decode(z, K)
+        dec = model.decode(z, k)
         t.append(time.perf_counter())
-        renders = render_pyramid(dec.points, dec.colors, dec.depth, size=64, levels=cfg.levels, tau=0.5,
+        renders = render_pyramid(dec.points, dec.colors, dec.depth, size=size, levels=cfg.levels, tau=0.5,
                                  fill_rule=dec.fill_rule, shape_index=dec.shape_index, samples=cfg.samples,
-                                 composite="soft")
+                                 composite="soft", supersample=supersample)
         loss = pyramid_l2(renders, target) + 1e-5 * kl_divergence(mu, logvar)
         t.append(time.perf_counter())
         opt.zero_grad()
@@ -73,7 +79,7 @@ def measure(cfg: ModelConfig):
         step(False)
     n = 10
     total = sum(step(True) for _ in range(n))
-    print(f"workload: B={B}, 64^2, P={cfg.paths}, k={K}, pyramid levels={cfg.levels}, "
+    print(f"workload: B={B}, {size}^2, P={cfg.paths}, k={k}, pyramid levels={cfg.levels}, supersample={supersample}, "
           f"decoder {cfg.dec_width}x{cfg.dec_layers}, deform={cfg.deform}")
     print(f"first step (includes torch.compile): {first:.1f} s")
     print(f"steady state: {total / n * 1e3:.0f} ms/step, {B * n / total:.0f} images/s")

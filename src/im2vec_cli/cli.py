@@ -286,7 +286,7 @@ def train_aux(data_dir, output, images, steps, model_name, device, seed):
     model = _load_model(model_name, device, seed)
     root = Path(data_dir)
     root = root / "train" if (root / "train").is_dir() else root
-    data, _ = load_folder(root, model.config.image_size, on_skip=lambda m: click.echo(f"Warning: skipped {m}", err=True))
+    data, _ = load_folder(root, model.config.image_size, fit=model.config.fit, on_skip=lambda m: click.echo(f"Warning: skipped {m}", err=True))
     pick = torch.randperm(len(data), generator=torch.Generator().manual_seed(seed))[:images]
     x = data[pick].float() / 255
     click.echo(f"measuring {len(x)} images x {model.config.paths} paths", err=True)
@@ -681,7 +681,7 @@ def eval_cmd(data_dir, limit, train_dir, samples, pairs, segments, output, markd
         from .data.folder import load_folder
 
         root = Path(train_dir) / "train" if (Path(train_dir) / "train").is_dir() else Path(train_dir)
-        train, _ = load_folder(root, model.config.image_size,
+        train, _ = load_folder(root, model.config.image_size, fit=model.config.fit,
                                on_skip=lambda msg: click.echo(f"Warning: skipped {msg}", err=True))
         res["train_images"] = len(train)
         res.update(generation_l2(model, train, samples=samples, seed=seed, segments=k))

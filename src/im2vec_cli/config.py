@@ -71,6 +71,7 @@ class ModelConfig(_Config):
 
     arch: str = "im2vec"  # "im2vec" (paths, sec. 3) or "imagevae" (the raster baseline of sec. 4)
     image_size: int = 64
+    fit: str = "resize"  # inputs smaller than image_size: "resize" (upscaled) or "pad" (centred unscaled, see fit_square)
     channels: int = 3
     latent: int = 128
     paths: int = 4
@@ -105,6 +106,7 @@ class TrainConfig(_Config):
     lookahead_alpha: float = 0.5
     tau_start: float = 1.0  # edge softness (pixels), annealed linearly...
     tau_end: float = 0.4  # ...to this value at the last step
+    supersample: int = 1  # > 1: the finest loss level is box-filtered from sub-pixels, like the SVG's antialiased render
     lr_final: float = 0.1  # cosine decay to lr * lr_final
     seed: int = 0
     val_fraction: float = 0.05

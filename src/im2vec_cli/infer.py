@@ -1,8 +1,9 @@
 """Inference: vectorize, encode, decode, sample and interpolate with a trained model.
 
 Frames: the model sees a ``S x S`` square (``S = config.image_size``) made from the input by
-centring it on a white square of side ``max(H, W)`` and resizing. ``Placement`` maps the
-model's normalised frame back to the *input's* pixel frame, so an SVG overlays its input.
+centring it on a white square of side ``max(H, W)`` (at least ``S`` when ``config.fit`` is
+"pad") and resizing. ``Placement`` maps the model's normalised frame back to the *input's*
+pixel frame, so an SVG overlays its input.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from .data.folder import fit_square, resize_square
+from .data.folder import fit_square, resize_square, square_side
 from .model.vae import Decoded, Im2Vec
 from .raster.bezier import line_controls
 from .svg import VectorImage, VectorShape, contour_d, from_tensors, rasterize_svg, to_svg
@@ -24,14 +25,17 @@ MIN_AREA = 1e-4  # paths below this area (normalised units) are unused and not e
 
 @dataclass(frozen=True)
 class Placement:
-    """Input ``width x height``; the model square of side ``max(H, W)`` sits at ``(-left, -top)``."""
+    """Input ``width x height``; the model square of side ``square_side(H, W, size, fit)``
+    sits at ``(-left, -top)`` in the input's pixel frame (``size`` 0: side ``max(H, W)``)."""
 
     width: int
     height: int
+    size: int = 0
+    fit: str = "resize"
 
     @property
     def side(self) -> int:
-        return max(self.width, self.height)
+        return square_side(self.height, self.width, self.size, self.fit)
 
     @property
     def offset(self) -> tuple[float, float]:
@@ -43,7 +47,8 @@ def model_input(model: Im2Vec, image: torch.Tensor) -> tuple[torch.Tensor, Place
     if image.dim() != 3 or image.shape[0] != 3:
         raise ValueError(f"image must be (3, H, W), got {tuple(image.shape)}")
     _, h, w = image.shape
-    return fit_square(image, model.config.image_size), Placement(w, h)
+    cfg = model.config
+    return fit_square(image, cfg.image_size, cfg.fit), Placement(w, h, cfg.image_size, cfg.fit)
 
 
 def to_vector(dec: Decoded, i: int, place: Placement, *, max_paths: int | None = None, keep_all: bool = False) -> VectorImage:

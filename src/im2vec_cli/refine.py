@@ -266,11 +266,11 @@ def refine(
         raise ValueError(f"image must be (3, H, W), got {tuple(image.shape)}")
     dev = next(model.parameters()).device
     _, h, w = image.shape
-    place = Placement(w, h)
     flat = uniform_color(image)
     if flat is not None:  # nothing to fit: the same answer as amortised vectorisation
-        return flat_vector(place, flat), {"loss_start": 0.0, "loss_end": 0.0, "latent_steps": 0, "point_steps": 0}
-    x, _ = model_input(model, image)
+        return flat_vector(Placement(w, h), flat), {"loss_start": 0.0, "loss_end": 0.0, "latent_steps": 0,
+                                                    "point_steps": 0}
+    x, place = model_input(model, image)
     target = image[None].to(dev)
     if max(h, w) > s.max_side:
         f = s.max_side / max(h, w)

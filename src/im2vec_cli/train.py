@@ -77,8 +77,11 @@ def schedule(step: int, tcfg: TrainConfig) -> dict[str, float]:
     return {"lr": lr, "beta": beta, "tau": tau}
 
 
-def reconstruction_loss(model: Im2Vec, images: torch.Tensor, segments: int, tau: float, sample: bool):
+def reconstruction_loss(model: Im2Vec, images: torch.Tensor, segments: int, tau: float, sample: bool,
+                        supersample: int = 1):
     """Pyramid L2 (eq. 1) of the reconstruction, and the KL term. ``images (B, 3, S, S)``.
+    ``supersample > 1`` renders the finest level from that many sub-pixels per side (``tau``
+    in sub-pixels there), so the loss sees the edges a user's antialiased render shows.
 
     Returns ``(pyramid L2, KL, decoded)``: ``Decoded`` paths, or for the ImageVAE baseline its
     ``(B, 3, S, S)`` raster, scored by the same pyramid loss.
@@ -92,15 +95,18 @@ def reconstruction_loss(model: Im2Vec, images: torch.Tensor, segments: int, tau:
     renders = render_pyramid(
         dec.points, dec.colors, dec.depth, size=cfg.image_size, levels=cfg.levels, tau=tau,
         fill_rule=dec.fill_rule, shape_index=dec.shape_index, samples=cfg.samples, composite="soft",
+        supersample=supersample,
     )
     return pyramid_l2(renders, gaussian_pyramid(images, cfg.levels)), kl_divergence(mu, logvar), dec
 
 
 @torch.no_grad()
-def evaluate_l2(model: Im2Vec, images: torch.Tensor, segments: int, tau: float, batch: int = 128) -> dict[str, float]:
+def evaluate_l2(model: Im2Vec, images: torch.Tensor, segments: int, tau: float, batch: int = 128,
+                supersample: int = 1) -> dict[str, float]:
     """Validation: pyramid L2 and plain MSE (paper Table 1) with ``z = mu``.
 
-    ``images`` uint8 ``(N, 3, S, S)``; the MSE render uses exact "over" compositing.
+    ``images`` uint8 ``(N, 3, S, S)``; the MSE render uses exact "over" compositing, and
+    ``supersample`` as the loss does.
     """
     m = _unwrap(model)
     was = m.training
@@ -109,8 +115,8 @@ def evaluate_l2(model: Im2Vec, images: torch.Tensor, segments: int, tau: float, 
     pyr, mse, n = 0.0, 0.0, 0
     for i in range(0, len(images), batch):
         x = images[i : i + batch].to(dev).float() / 255
-        loss, _, dec = reconstruction_loss(m, x, segments, tau, sample=False)
-        img = dec if m.raster_output else m.render(dec, tau=tau, composite="over")
+        loss, _, dec = reconstruction_loss(m, x, segments, tau, sample=False, supersample=supersample)
+        img = dec if m.raster_output else m.render(dec, tau=tau, composite="over", supersample=supersample)
         pyr += float(loss) * len(x)
         mse += float(((img - x) ** 2).mean()) * len(x)
         n += len(x)
@@ -184,6 +190,8 @@ def train(
     the same config) starts from trained weights with a fresh optimiser: fine-tuning.
     """
     emit = on_event or (lambda e: None)
+    if train_cfg.supersample < 1:
+        raise Im2VecError(f"supersample must be >= 1, got {train_cfg.supersample}")
     run_dir = Path(run_dir)
     if int(os.environ.get("WORLD_SIZE", "1")) > 1 and not dist.is_initialized():
         dist.init_process_group("nccl" if device.type == "cuda" else "gloo")
@@ -195,16 +203,25 @@ def train(
     if main:
         run_dir.mkdir(parents=True, exist_ok=True)
 
+    # ---- model (first, so a bad config fails before the data loads)
+    torch.manual_seed(train_cfg.seed)
+    try:
+        model = build_model(model_cfg).to(device)
+    except ValueError as exc:
+        raise Im2VecError(f"model config: {exc}") from None
+    if init_state is not None:
+        model.load_state_dict(init_state)  # copies into the parameters, casting fp16 storage
+
     # ---- data
     if images is None:
         data_dir = Path(data_dir)
         tr_dir, auto_val = find_split_dirs(data_dir)
         val_dir = Path(val_dir) if val_dir else auto_val
         skip = lambda msg: emit({"event": "skip", "message": msg}) if main else None  # noqa: E731
-        images, names = load_folder(tr_dir, model_cfg.image_size, workers=train_cfg.workers, on_skip=skip)
+        images, names = load_folder(tr_dir, model_cfg.image_size, fit=model_cfg.fit, workers=train_cfg.workers, on_skip=skip)
         if val_dir is not None:
             train_x = images
-            val_x, _ = load_folder(val_dir, model_cfg.image_size, workers=train_cfg.workers, on_skip=skip)
+            val_x, _ = load_folder(val_dir, model_cfg.image_size, fit=model_cfg.fit, workers=train_cfg.workers, on_skip=skip)
         else:
             tr, va = split_indices(names, train_cfg.val_fraction)
             train_x, val_x = images[tr], images[va]
@@ -218,11 +235,7 @@ def train(
         train_cfg = dataclasses.replace(train_cfg, steps=max(1, round(epochs * len(train_x) / train_cfg.batch)))
     emit({"event": "data", "train": len(train_x), "val": len(val_x), "steps": train_cfg.steps})
 
-    # ---- model and optimiser
-    torch.manual_seed(train_cfg.seed)
-    model = build_model(model_cfg).to(device)
-    if init_state is not None:
-        model.load_state_dict(init_state)  # copies into the parameters, casting fp16 storage
+    # ---- optimiser
     opt = Lookahead(torch.optim.RAdam(model.parameters(), lr=train_cfg.lr), train_cfg.lookahead_k,
                     train_cfg.lookahead_alpha)
     gen = torch.Generator().manual_seed(train_cfg.seed * 1000 + rank)
@@ -281,7 +294,8 @@ def train(
             idx = torch.randint(len(train_x), (train_cfg.batch,), generator=gen)
             k = int(torch.randint(model_cfg.min_segments, model_cfg.max_segments + 1, (1,), generator=gen))
             x = train_x[idx].to(device).float() / 255  # (B, 3, S, S)
-            rec, kl, _ = reconstruction_loss(ddp_model, x, k, sch["tau"], sample=True)
+            rec, kl, _ = reconstruction_loss(ddp_model, x, k, sch["tau"], sample=True,
+                                             supersample=train_cfg.supersample)
             loss = rec + sch["beta"] * kl
             opt.zero_grad()
             loss.backward()
@@ -311,7 +325,8 @@ def train(
                 t_last, n_last = now, 0
             if step % train_cfg.val_every == 0 or step == train_cfg.steps:
                 if main:
-                    log({"event": "val", "step": step, **evaluate_l2(model, val_x, model_cfg.segments, train_cfg.tau_end),
+                    log({"event": "val", "step": step, **evaluate_l2(model, val_x, model_cfg.segments, train_cfg.tau_end,
+                                                                 supersample=train_cfg.supersample),
                          "time": time.time()})
             if main and (step % train_cfg.preview_every == 0 or step == train_cfg.steps):
                 atomic_write(run_dir / f"preview_{step:07d}.png",

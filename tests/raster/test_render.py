@@ -14,6 +14,7 @@ from im2vec_cli.raster import (
     render_coverage,
     render_paths,
     render_pyramid,
+    render_supersampled,
 )
 from im2vec_cli.raster.coverage import nearest_edge_search, winding_number
 from im2vec_cli.svg import VectorImage, VectorShape, rasterize_svg, to_svg, to_tensors
@@ -90,6 +91,34 @@ def test_self_intersecting_pentagram_matches_cairo(rule):
     check_agreement(img)
     centre = ours(img)[34, 32]
     assert (centre < 0.05) if rule == "nonzero" else (centre > 0.95)
+
+
+@pytest.mark.parametrize("char", list("aB8&"))
+def test_supersampled_render_matches_cairo_antialiasing(dejavu, char):
+    """At a model's 32^2, a soft edge (sigmoid, tau 0.3 px) is visibly not the box-filtered
+    edge of cairo's antialiased render; 4x4 sub-pixels with tau 0.25 sub-px match it."""
+    img = glyph_image(dejavu, char, size=32, margin=2)
+    pts, cols, sidx = to_tensors(img)
+    kw = dict(size=32, fill_rule=img.shapes[0].fill_rule, shape_index=sidx, samples=16)
+    ref = cairo(img, supersample=8)
+    plain = render_paths(pts[None], cols[None], tau=0.3, **kw)[0].mean(0).numpy()
+    boxed = render_supersampled(pts[None], cols[None], factor=4, tau=0.25, **kw)[0].mean(0).numpy()
+    err_plain, err_boxed = ((plain - ref) ** 2).mean(), ((boxed - ref) ** 2).mean()
+    assert err_boxed <= 1e-4 and err_boxed <= 0.05 * err_plain, (err_boxed, err_plain)
+
+
+def test_pyramid_supersamples_only_the_finest_level():
+    pts = circle(14.3, 17.1, 9.0, segments=6, dtype=torch.float32)[None, None] / 32
+    cols = torch.zeros(1, 1, 3)
+    plain = render_pyramid(pts, cols, size=32, levels=3, tau=0.3)
+    boxed = render_pyramid(pts, cols, size=32, levels=3, tau=0.3, supersample=4)
+    assert [r.shape[-1] for r in boxed] == [32, 16, 8]
+    assert torch.allclose(boxed[0], render_supersampled(pts, cols, size=32, factor=4, tau=0.3))
+    assert not torch.allclose(boxed[0], plain[0], atol=1e-2)
+    for a, b in zip(plain[1:], boxed[1:]):
+        assert torch.equal(a, b)
+    with pytest.raises(ValueError, match="factor"):
+        render_supersampled(pts, cols, size=32, factor=0)
 
 
 def test_same_contours_evenodd_overlap_is_hole():
@@ -179,6 +208,19 @@ def test_gradcheck_float64():
         return render_paths(p, c, size=12, tau=1.0, samples=3)
 
     assert torch.autograd.gradcheck(f, (pts, col), eps=1e-6, atol=1e-5)
+
+
+def test_gradcheck_supersampled_float64():
+    torch.manual_seed(3)
+    pts = (circle(0.5, 0.5, 0.3, segments=3) + 0.03 * torch.randn(9, 2, dtype=torch.float64))[None, None]
+    pts.requires_grad_(True)
+    col = torch.tensor([[[0.2, 0.5, 0.9]]], dtype=torch.float64)
+
+    def f(p):
+        return render_supersampled(p, col, size=6, factor=2, tau=1.0, samples=3)
+
+    assert f(pts).shape == (1, 3, 6, 6)
+    assert torch.autograd.gradcheck(f, (pts,), eps=1e-6, atol=1e-5)
 
 
 def test_gradcheck_grouped_shapes_evenodd():

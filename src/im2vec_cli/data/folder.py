@@ -1,7 +1,7 @@
 """Image folders for training: every PNG/JPG under a root, loaded into memory.
 
 Images are composited onto white, converted to RGB and fitted to ``size x size``
-(padded with white to a square, then resized), stored as uint8 ``(N, 3, S, S)``.
+(``fit_square``: padded with white to a square, then resized), stored as uint8 ``(N, 3, S, S)``.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from ..errors import DataError, InputError
 from ..io import load_image
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
+FITS = ("resize", "pad")  # ModelConfig.fit: how an image smaller than the model square meets it
 
 
 def list_images(root: str | Path) -> list[Path]:
@@ -38,22 +39,33 @@ def resize_square(img: torch.Tensor, size: int) -> torch.Tensor:
                          align_corners=None if down else False)[0]
 
 
-def fit_square(img: torch.Tensor, size: int) -> torch.Tensor:
-    """``(3, H, W)`` -> ``(3, size, size)``: pad with white to a centred square, then resize."""
+def square_side(height: int, width: int, size: int, fit: str = "resize") -> int:
+    """Side of the white square an image is centred on before it is resized to ``size``:
+    ``max(H, W)``, or with ``fit="pad"`` at least ``size``, so that a smaller image (28 x 28
+    MNIST in a 32 x 32 model) is padded, never resampled."""
+    if fit not in FITS:
+        raise ValueError(f"fit must be one of {FITS}, got {fit!r}")
+    return max(height, width, size if fit == "pad" else 0)
+
+
+def fit_square(img: torch.Tensor, size: int, fit: str = "resize") -> torch.Tensor:
+    """``(3, H, W)`` -> ``(3, size, size)``: centre on a white square of side
+    ``square_side(H, W, size, fit)``, then resize to ``size``."""
     import torch.nn.functional as F
 
     _, h, w = img.shape
-    s = max(h, w)
-    if h != w:
+    s = square_side(h, w, size, fit)
+    if (h, w) != (s, s):
         top, left = (s - h) // 2, (s - w) // 2
         img = F.pad(img, (left, s - w - left, top, s - h - top), value=1.0)
     return resize_square(img, size).clamp(0, 1)
 
 
 def load_folder(
-    root: str | Path, size: int, *, workers: int = 2, on_skip: Callable[[str], None] | None = None
+    root: str | Path, size: int, *, fit: str = "resize", workers: int = 2,
+    on_skip: Callable[[str], None] | None = None,
 ) -> tuple[torch.Tensor, list[str]]:
-    """Load every image under ``root``.
+    """Load every image under ``root``, fitted to ``size`` by ``fit_square(..., fit)``.
 
     Unreadable files are skipped and reported through ``on_skip`` (one line each).
 
@@ -66,7 +78,7 @@ def load_folder(
 
     def one(p):
         try:
-            return fit_square(load_image(p), size)
+            return fit_square(load_image(p), size, fit)
         except InputError as exc:
             if on_skip:
                 on_skip(str(exc))

@@ -9,7 +9,7 @@ import torch
 from torch import nn
 
 from ..config import ModelConfig
-from ..raster import render_paths
+from ..raster import render_supersampled
 from ..raster.bezier import flatten_closed, polygon_area
 from .decoder import PathCodes, PathDecoder
 from .encoder import Encoder, sample_latent
@@ -128,12 +128,14 @@ class Im2Vec(nn.Module):
         params = self.segment_predictor(code.flatten(0, 1))
         return choose_segments(params, quality, self.config.max_segments).view(code.shape[:2])
 
-    def render(self, dec: Decoded, size: int | None = None, tau: float = 0.4, composite: str = "soft") -> torch.Tensor:
-        """Rasterise decoded paths to ``(B, 3, size, size)``."""
+    def render(self, dec: Decoded, size: int | None = None, tau: float = 0.4, composite: str = "soft",
+               supersample: int = 1) -> torch.Tensor:
+        """Rasterise decoded paths to ``(B, 3, size, size)``; ``supersample > 1``: box-filtered
+        from a render at that many times the size (``render_supersampled``)."""
         cfg = self.config
-        return render_paths(
-            dec.points, dec.colors, dec.depth, size=size or cfg.image_size, tau=tau, fill_rule=dec.fill_rule,
-            shape_index=dec.shape_index, samples=cfg.samples, composite=composite,
+        return render_supersampled(
+            dec.points, dec.colors, dec.depth, size=size or cfg.image_size, factor=supersample, tau=tau,
+            fill_rule=dec.fill_rule, shape_index=dec.shape_index, samples=cfg.samples, composite=composite,
         )
 
     def forward(self, images: torch.Tensor, segments: int | None = None, sample: bool = True):

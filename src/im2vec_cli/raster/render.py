@@ -148,6 +148,25 @@ def render_paths(
     raise ValueError(f"composite must be 'over' or 'soft', got {composite!r}")
 
 
+def render_supersampled(
+    points: torch.Tensor,
+    colors: torch.Tensor,
+    depth: torch.Tensor | None = None,
+    *,
+    size: int | Sequence[int],
+    factor: int,
+    **kwargs,
+) -> torch.Tensor:
+    """``render_paths`` at ``factor`` times ``size``, box-filtered down to ``(B, 3, H, W)``:
+    each pixel is the mean of ``factor**2`` sub-pixels, like the antialiased render of the
+    SVG (cairo). ``tau`` is in sub-pixels. Other arguments as in ``render_paths``."""
+    if factor < 1:
+        raise ValueError(f"factor must be >= 1, got {factor}")
+    h, w = _size(size)
+    img = render_paths(points, colors, depth, size=(h * factor, w * factor), **kwargs)
+    return torch.nn.functional.avg_pool2d(img, factor) if factor > 1 else img
+
+
 def render_pyramid(
     points: torch.Tensor,
     colors: torch.Tensor,
@@ -155,11 +174,16 @@ def render_pyramid(
     *,
     size: int | Sequence[int],
     levels: int = 3,
+    supersample: int = 1,
     **kwargs,
 ) -> list[torch.Tensor]:
     """Render the paths directly at every pyramid level (finest first); ``tau`` stays in
-    each level's own pixels. Keyword arguments as in ``render_paths``."""
-    return [render_paths(points, colors, depth, size=s, **kwargs) for s in pyramid_sizes(_size(size), levels)]
+    each level's own pixels. ``supersample > 1`` renders the finest level with
+    ``render_supersampled`` (``tau`` then in its sub-pixels). Keyword arguments as in
+    ``render_paths``."""
+    sizes = pyramid_sizes(_size(size), levels)
+    finest = render_supersampled(points, colors, depth, size=sizes[0], factor=supersample, **kwargs)
+    return [finest] + [render_paths(points, colors, depth, size=s, **kwargs) for s in sizes[1:]]
 
 
 @dataclass(frozen=True)
