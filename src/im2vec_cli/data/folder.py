@@ -39,12 +39,17 @@ def resize_square(img: torch.Tensor, size: int) -> torch.Tensor:
                          align_corners=None if down else False)[0]
 
 
+def check_fit(fit: str) -> None:
+    """Raise ``ValueError`` unless ``fit`` is one of ``FITS``."""
+    if fit not in FITS:
+        raise ValueError(f"fit must be one of {FITS}, got {fit!r}")
+
+
 def square_side(height: int, width: int, size: int, fit: str = "resize") -> int:
     """Side of the white square an image is centred on before it is resized to ``size``:
     ``max(H, W)``, or with ``fit="pad"`` at least ``size``, so that a smaller image (28 x 28
     MNIST in a 32 x 32 model) is padded, never resampled."""
-    if fit not in FITS:
-        raise ValueError(f"fit must be one of {FITS}, got {fit!r}")
+    check_fit(fit)
     return max(height, width, size if fit == "pad" else 0)
 
 

@@ -69,11 +69,10 @@ class ImageVAE(nn.Module):
 
 def build_model(config: ModelConfig) -> nn.Module:
     """The model ``config.arch`` names: ``Im2Vec`` or the ``ImageVAE`` baseline."""
-    from ..data.folder import FITS
+    from ..data.folder import check_fit
     from .vae import Im2Vec
 
-    if config.fit not in FITS:
-        raise ValueError(f"fit must be one of {FITS}, got {config.fit!r}")
+    check_fit(config.fit)
     if config.arch == "im2vec":
         return Im2Vec(config)
     if config.arch == "imagevae":
