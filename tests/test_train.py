@@ -55,7 +55,8 @@ def test_learning_cuts_val_loss_5x(tmp_path, shapes):
 
 def test_supersampled_loss_trains(tmp_path, shapes):
     """``supersample`` (the finest level box-filtered from 2x2 sub-pixels) is a loss that
-    descends; validation scores the same render. A factor below 1 is a one-line error."""
+    descends; validation scores the same render. A factor below 1, or an unknown pyramid,
+    is a one-line error."""
     from im2vec_cli.errors import Im2VecError
     from im2vec_cli.model.vae import Im2Vec
 
@@ -69,6 +70,8 @@ def test_supersampled_loss_trains(tmp_path, shapes):
     assert after["val_mse"] <= before["val_mse"] / 2, (before, after)
     with pytest.raises(Im2VecError, match="supersample"):
         train(None, tmp_path / "bad", MODEL, fast_cfg(supersample=0), images=shapes)
+    with pytest.raises(Im2VecError, match="pyramid"):
+        train(None, tmp_path / "bad", MODEL, fast_cfg(pyramid="nearest"), images=shapes)
 
 
 def test_resume_is_exact(tmp_path, shapes):

@@ -107,6 +107,7 @@ class TrainConfig(_Config):
     tau_start: float = 1.0  # edge softness (pixels), annealed linearly...
     tau_end: float = 0.4  # ...to this value at the last step
     supersample: int = 1  # > 1: the finest loss level is box-filtered from sub-pixels, like the SVG's antialiased render
+    pyramid: str = "blur"  # coarser loss levels: "blur" (pyramid of the render, as the target's) or "render" (see render_pyramid)
     lr_final: float = 0.1  # cosine decay to lr * lr_final
     seed: int = 0
     val_fraction: float = 0.05

@@ -78,10 +78,11 @@ def schedule(step: int, tcfg: TrainConfig) -> dict[str, float]:
 
 
 def reconstruction_loss(model: Im2Vec, images: torch.Tensor, segments: int, tau: float, sample: bool,
-                        supersample: int = 1):
+                        supersample: int = 1, pyramid: str = "blur"):
     """Pyramid L2 (eq. 1) of the reconstruction, and the KL term. ``images (B, 3, S, S)``.
     ``supersample > 1`` renders the finest level from that many sub-pixels per side (``tau``
     in sub-pixels there), so the loss sees the edges a user's antialiased render shows.
+    ``pyramid`` picks the coarser levels (``render_pyramid``'s ``coarse``).
 
     Returns ``(pyramid L2, KL, decoded)``: ``Decoded`` paths, or for the ImageVAE baseline its
     ``(B, 3, S, S)`` raster, scored by the same pyramid loss.
@@ -95,18 +96,18 @@ def reconstruction_loss(model: Im2Vec, images: torch.Tensor, segments: int, tau:
     renders = render_pyramid(
         dec.points, dec.colors, dec.depth, size=cfg.image_size, levels=cfg.levels, tau=tau,
         fill_rule=dec.fill_rule, shape_index=dec.shape_index, samples=cfg.samples, composite="soft",
-        supersample=supersample,
+        supersample=supersample, coarse=pyramid,
     )
     return pyramid_l2(renders, gaussian_pyramid(images, cfg.levels)), kl_divergence(mu, logvar), dec
 
 
 @torch.no_grad()
 def evaluate_l2(model: Im2Vec, images: torch.Tensor, segments: int, tau: float, batch: int = 128,
-                supersample: int = 1) -> dict[str, float]:
+                supersample: int = 1, pyramid: str = "blur") -> dict[str, float]:
     """Validation: pyramid L2 and plain MSE (paper Table 1) with ``z = mu``.
 
     ``images`` uint8 ``(N, 3, S, S)``; the MSE render uses exact "over" compositing, and
-    ``supersample`` as the loss does.
+    ``supersample`` and ``pyramid`` as the loss does.
     """
     m = _unwrap(model)
     was = m.training
@@ -115,7 +116,8 @@ def evaluate_l2(model: Im2Vec, images: torch.Tensor, segments: int, tau: float, 
     pyr, mse, n = 0.0, 0.0, 0
     for i in range(0, len(images), batch):
         x = images[i : i + batch].to(dev).float() / 255
-        loss, _, dec = reconstruction_loss(m, x, segments, tau, sample=False, supersample=supersample)
+        loss, _, dec = reconstruction_loss(m, x, segments, tau, sample=False, supersample=supersample,
+                                           pyramid=pyramid)
         img = dec if m.raster_output else m.render(dec, tau=tau, composite="over", supersample=supersample)
         pyr += float(loss) * len(x)
         mse += float(((img - x) ** 2).mean()) * len(x)
@@ -192,6 +194,8 @@ def train(
     emit = on_event or (lambda e: None)
     if train_cfg.supersample < 1:
         raise Im2VecError(f"supersample must be >= 1, got {train_cfg.supersample}")
+    if train_cfg.pyramid not in ("blur", "render"):
+        raise Im2VecError(f"pyramid must be 'blur' or 'render', got {train_cfg.pyramid!r}")
     run_dir = Path(run_dir)
     if int(os.environ.get("WORLD_SIZE", "1")) > 1 and not dist.is_initialized():
         dist.init_process_group("nccl" if device.type == "cuda" else "gloo")
@@ -295,7 +299,7 @@ def train(
             k = int(torch.randint(model_cfg.min_segments, model_cfg.max_segments + 1, (1,), generator=gen))
             x = train_x[idx].to(device).float() / 255  # (B, 3, S, S)
             rec, kl, _ = reconstruction_loss(ddp_model, x, k, sch["tau"], sample=True,
-                                             supersample=train_cfg.supersample)
+                                             supersample=train_cfg.supersample, pyramid=train_cfg.pyramid)
             loss = rec + sch["beta"] * kl
             opt.zero_grad()
             loss.backward()
@@ -326,7 +330,8 @@ def train(
             if step % train_cfg.val_every == 0 or step == train_cfg.steps:
                 if main:
                     log({"event": "val", "step": step, **evaluate_l2(model, val_x, model_cfg.segments, train_cfg.tau_end,
-                                                                 supersample=train_cfg.supersample),
+                                                                 supersample=train_cfg.supersample,
+                                                                 pyramid=train_cfg.pyramid),
                          "time": time.time()})
             if main and (step % train_cfg.preview_every == 0 or step == train_cfg.steps):
                 atomic_write(run_dir / f"preview_{step:07d}.png",
