@@ -30,6 +30,7 @@ from .io import atomic_write
 from .model.imagevae import build_model
 from .model.vae import Im2Vec, kl_divergence
 from .raster import gaussian_pyramid, pyramid_l2, render_pyramid
+from .raster.render import PYRAMID_COARSE
 
 MAX_NONFINITE_IN_A_ROW = 20  # skipped steps before training stops with an error
 
@@ -194,8 +195,8 @@ def train(
     emit = on_event or (lambda e: None)
     if train_cfg.supersample < 1:
         raise Im2VecError(f"supersample must be >= 1, got {train_cfg.supersample}")
-    if train_cfg.pyramid not in ("blur", "render"):
-        raise Im2VecError(f"pyramid must be 'blur' or 'render', got {train_cfg.pyramid!r}")
+    if train_cfg.pyramid not in PYRAMID_COARSE:
+        raise Im2VecError(f"pyramid must be one of {PYRAMID_COARSE}, got {train_cfg.pyramid!r}")
     run_dir = Path(run_dir)
     if int(os.environ.get("WORLD_SIZE", "1")) > 1 and not dist.is_initialized():
         dist.init_process_group("nccl" if device.type == "cuda" else "gloo")

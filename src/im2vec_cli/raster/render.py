@@ -167,6 +167,9 @@ def render_supersampled(
     return torch.nn.functional.avg_pool2d(img, factor) if factor > 1 else img
 
 
+PYRAMID_COARSE = ("blur", "render")  # the values of render_pyramid's ``coarse`` (TrainConfig.pyramid)
+
+
 def render_pyramid(
     points: torch.Tensor,
     colors: torch.Tensor,
@@ -198,7 +201,7 @@ def render_pyramid(
         return gaussian_pyramid(finest, levels)
     if coarse == "render":
         return [finest] + [render_paths(points, colors, depth, size=s, **kwargs) for s in sizes[1:]]
-    raise ValueError(f"coarse must be 'blur' or 'render', got {coarse!r}")
+    raise ValueError(f"coarse must be one of {PYRAMID_COARSE}, got {coarse!r}")
 
 
 @dataclass(frozen=True)
