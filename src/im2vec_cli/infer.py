@@ -17,6 +17,7 @@ import torch
 
 from .data.folder import fit_square, resize_square, square_side
 from .model.vae import Decoded, Im2Vec
+from .overlaps import resolve_overlaps
 from .raster.bezier import line_controls
 from .svg import VectorImage, VectorShape, contour_d, from_tensors, rasterize_svg, to_svg
 
@@ -124,6 +125,8 @@ def vectorize(model: Im2Vec, images: list[torch.Tensor], *, segments: int | str 
 
     ``segments``: per path, default the model's; ``"auto"`` picks each path's count for
     ``quality`` (``segment_counts``).
+    Overlapping paths of an even-odd shape are filled rather than cut out where that is
+    nearer the image (``overlaps.resolve_overlaps``: no white seams where two strokes meet).
     Flat images (one colour, e.g. blank) skip the model: white gives an empty SVG, any
     other colour one canvas-sized square.
     """
@@ -141,7 +144,7 @@ def vectorize(model: Im2Vec, images: list[torch.Tensor], *, segments: int | str 
         mu, _ = model.encode(torch.stack(xs).to(dev))
         dec = model.decode(mu, segment_counts(model, mu, segments, quality))
         for j, (i, p) in enumerate(zip(todo, places)):
-            out[i] = to_vector(dec, j, p, max_paths=max_paths)
+            out[i] = resolve_overlaps(to_vector(dec, j, p, max_paths=max_paths), images[i])
     return out  # type: ignore[return-value]
 
 

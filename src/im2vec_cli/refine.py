@@ -23,6 +23,7 @@ import torch.nn.functional as F
 
 from .infer import Placement, flat_vector, model_input, segment_counts, to_vector, uniform_color
 from .model.vae import Im2Vec
+from .overlaps import resolve_overlaps
 from .raster import gaussian_pyramid, pyramid_l2, render_pyramid
 from .raster.bezier import polygon_area, segment_controls
 from .simplify import simplify
@@ -290,7 +291,7 @@ def refine(
             with torch.no_grad():
                 mu, _ = model.encode(x[None].to(dev))
                 k = segment_counts(model, mu, segments, quality)
-            amortised = to_vector(model.decode(mu, k), 0, place, max_paths=max_paths)
+            amortised = resolve_overlaps(to_vector(model.decode(mu, k), 0, place, max_paths=max_paths), image)
             start = fine.vector_loss(amortised, s.tau_end)
             # stage 1: the latent (the shapes stay on the model's manifold)
             z = mu.clone().requires_grad_(True)
@@ -313,8 +314,8 @@ def refine(
                     break
             latent_steps = len(hist)
             with torch.no_grad():
-                vec = to_vector(model.decode(best_z, k), 0, place, max_paths=max_paths)
-            # stage 2: control points and colours (unused paths are already dropped)
+                vec = resolve_overlaps(to_vector(model.decode(best_z, k), 0, place, max_paths=max_paths), image)
+            # stage 2 (under nonzero where that fills the seams of overlapping paths): control points and colours (unused paths are already dropped)
             learn_colors = not model.palette.numel()
             vec, point_steps = fitter.fit_points(vec, s.point_steps, s.tau_start, learn_colors, "points", on_step)
             vec = fitter.prune(vec, s.prune_tol)

@@ -52,19 +52,21 @@ def _nearest_kernel(cand, sel, px, py, num_edges, r2):
     return idx.masked_fill(none, 0), torch.sqrt(d2 + _EPS).masked_fill(none, math.inf)
 
 
-def winding_number(a: torch.Tensor, b: torch.Tensor, height: int, width: int) -> torch.Tensor:
+def winding_number(a: torch.Tensor, b: torch.Tensor, height: int, width: int, *, eager: bool = False) -> torch.Tensor:
     """Winding number of closed polylines at every pixel centre (scanline count).
 
     Args:
         a: ``(N, E, 2)`` edge starts, pixel frame.
         b: ``(N, E, 2)`` edge ends.
         height, width: raster size.
+        eager: never compile (one-off calls at ever-changing raster sizes, which would each
+            compile a graph: the raster size is specialised).
 
     Returns:
         ``(N, H, W)`` winding numbers (float, integral values).
     """
     with torch.no_grad():
-        return _winding(a, b, height, width)
+        return (_winding.eager if eager else _winding)(a, b, height, width)
 
 
 @maybe_compile(dynamic={0: (0, 1), 1: (0, 1)})
