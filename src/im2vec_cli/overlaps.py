@@ -25,7 +25,8 @@ import torch
 import torch.nn.functional as F
 
 from .raster.bezier import flatten_closed
-from .raster.coverage import winding_number
+from .raster.composite import composite_over
+from .raster.coverage import inside_from_winding, winding_number
 from .svg import VectorImage, VectorShape
 
 
@@ -83,29 +84,24 @@ def resolve_overlaps(
     target = F.interpolate(image[None].double(), size=(hs, ws), mode="area")[0] if f < 1 else image.double()  # (3, h, w)
     scale = (2 * ws / vec.width, 2 * hs / vec.height)
 
-    def coverage(wind: torch.Tensor, signs: torch.Tensor | None) -> torch.Tensor:
-        """``wind (N, 2h, 2w)``, ``signs (C, N)`` or None (even-odd) -> ``(C, h, w)`` box-filtered."""
-        if signs is None:
-            inside = (wind.sum(0, keepdim=True).round().remainder(2) != 0)
-        else:
-            inside = torch.einsum("cn,nyx->cyx", signs, wind).round() != 0
-        return F.avg_pool2d(inside.double()[:, None], 2)[:, 0]  # (C, h, w)
+    def coverage(wind: torch.Tensor, signs: torch.Tensor, rule: str) -> torch.Tensor:
+        """``wind (N, 2h, 2w)`` of each contour, ``signs (C, N)`` -> ``(C, h, w)`` box-filtered coverage."""
+        total = torch.einsum("cn,nyx->cyx", signs, wind).round()  # (C, 2h, 2w)
+        return F.avg_pool2d(inside_from_winding(total, rule).double()[:, None], 2)[:, 0]
 
     shapes = list(vec.shapes)
     winds = [_windings(s.contours, scale, (2 * hs, 2 * ws), samples) for s in shapes]  # G x (N_g, 2h, 2w)
-    covs = [coverage(wd, None if s.fill_rule == "evenodd" else torch.ones(1, len(wd), dtype=torch.float64))[0]
-            for s, wd in zip(shapes, winds)]  # G x (h, w)
+    covs = torch.stack([coverage(wd, torch.ones(1, len(wd), dtype=torch.float64), s.fill_rule)[0]
+                        for s, wd in zip(shapes, winds)])  # (G, h, w)
+    colors = torch.tensor([s.color for s in shapes], dtype=torch.float64)  # (G, 3)
+    depth = torch.arange(len(shapes), dtype=torch.float64)  # (G,): listed back to front
     for g in todo:
         n = len(shapes[g].contours)
         signs = torch.tensor([(1,) + t for t in itertools.product((1, -1), repeat=n - 1)], dtype=torch.float64)  # (C, n)
-        options = torch.cat([covs[g][None], coverage(winds[g], signs)])  # (1 + C, h, w); option 0: even-odd
-        below = torch.ones(3, hs, ws, dtype=torch.float64)  # shapes behind g, composited over white
-        for s, c in zip(shapes[:g], covs[:g]):
-            below = below * (1 - c) + torch.tensor(s.color, dtype=torch.float64).view(3, 1, 1) * c
-        col = torch.tensor(shapes[g].color, dtype=torch.float64).view(1, 3, 1, 1)
-        out = below[None] * (1 - options[:, None]) + col * options[:, None]  # (1 + C, 3, h, w)
-        for s, c in zip(shapes[g + 1 :], covs[g + 1 :]):
-            out = out * (1 - c) + torch.tensor(s.color, dtype=torch.float64).view(1, 3, 1, 1) * c
+        options = torch.cat([covs[g][None], coverage(winds[g], signs, "nonzero")])  # (1 + C, h, w); option 0: even-odd
+        stack = covs[None].repeat(len(options), 1, 1, 1)  # (1 + C, G, h, w)
+        stack[:, g] = options
+        out = composite_over(stack, colors.expand(len(options), -1, -1), depth.expand(len(options), -1))  # (1 + C, 3, h, w)
         err = ((out - target[None]) ** 2).mean(dim=(1, 2, 3))  # (1 + C,)
         best = int(torch.argmin(err))
         if best == 0 or err[best] >= err[0] - 1e-9:

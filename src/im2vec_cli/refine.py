@@ -315,7 +315,8 @@ def refine(
             latent_steps = len(hist)
             with torch.no_grad():
                 vec = resolve_overlaps(to_vector(model.decode(best_z, k), 0, place, max_paths=max_paths), image)
-            # stage 2 (under nonzero where that fills the seams of overlapping paths): control points and colours (unused paths are already dropped)
+            # stage 2: control points and colours (unused paths are already dropped), under nonzero
+            # where resolve_overlaps chose it
             learn_colors = not model.palette.numel()
             vec, point_steps = fitter.fit_points(vec, s.point_steps, s.tau_start, learn_colors, "points", on_step)
             vec = fitter.prune(vec, s.prune_tol)
