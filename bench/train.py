@@ -1,6 +1,8 @@
 """Training-step benchmark (issue "The Im2Vec model"): images/s at B=64, 64^2, P=4, k=16,
 and the shipped MNIST model's 32^2, P=3, k=12 step with and without a supersampled finest
-loss level (``TrainConfig.supersample``), side by side.
+loss level (``TrainConfig.supersample``), at B=64 and at the B=32 of the 60-minute MNIST run,
+and with the path decoder's first conv run over the full fused input (the reference
+``_stack_unfolded`` below, as before the path code was folded into a bias), side by side.
 
 Prints compile time apart from steady state, and a per-phase breakdown of one step.
 Run: ``python bench/train.py`` (``make bench``).
@@ -17,6 +19,7 @@ import torch
 sys.path.insert(0, os.path.dirname(__file__))
 
 from im2vec_cli.config import ModelConfig, TrainConfig  # noqa: E402
+from im2vec_cli.model.decoder import PathDecoder  # noqa: E402
 from im2vec_cli.model.vae import Im2Vec, kl_divergence  # noqa: E402
 from im2vec_cli.raster import gaussian_pyramid, pyramid_l2, render_pyramid  # noqa: E402
 from im2vec_cli.train import Lookahead  # noqa: E402
@@ -24,24 +27,37 @@ from im2vec_cli.train import Lookahead  # noqa: E402
 B = 64
 MNIST = ModelConfig(palette="#000000", paths=3, image_size=32, fit="pad", min_segments=8, max_segments=16)
 
-# name: (model config, k, supersample)
+# name: (model config, k, supersample, batch, folded first conv)
 CONFIGS = {
-    "default (shipped fonts model)": (ModelConfig(palette="#000000"), 16, 1),
+    "default (shipped fonts model)": (ModelConfig(palette="#000000"), 16, 1, B, True),
     "lean (enc 16, dec 96x3, LSTM 64)": (ModelConfig(palette="#000000", enc_width=16, dec_width=96, dec_layers=3,
-                                                     lstm_hidden=64), 16, 1),
-    "mnist (32^2, P=3)": (MNIST, 12, 1),
-    "mnist, supersample=4 (finest level from 128^2)": (MNIST, 12, 4),
+                                                     lstm_hidden=64), 16, 1, B, True),
+    "mnist (32^2, P=3)": (MNIST, 12, 1, B, True),
+    "mnist, supersample=4 (finest level from 128^2)": (MNIST, 12, 4, B, True),
+    "mnist, supersample=4, first conv over the full fused input (before)": (MNIST, 12, 4, B, False),
+    "mnist, supersample=4, B=32 (the 60-minute run)": (MNIST, 12, 4, 32, True),
 }
+
+
+def _stack_unfolded(stack, theta, types, code):
+    """Reference for ``PathDecoder._stack``: the circular stack over ``(N, 4 + C, 3k)``."""
+    n, m = theta.shape
+    fused = torch.cat([torch.stack([theta.cos(), theta.sin()], 1), types.expand(n, -1, -1),
+                       code.unsqueeze(-1).expand(-1, -1, m)], 1)
+    return stack(fused)
 
 
 def main():
     print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, compile={os.environ.get('IM2VEC_COMPILE', '1')}")
-    for name, (cfg, k, ss) in CONFIGS.items():
+    folded = PathDecoder._stack
+    for name, (cfg, k, ss, batch, fold) in CONFIGS.items():
         print(f"== {name}")
-        measure(cfg, k, ss)
+        PathDecoder._stack = folded if fold else staticmethod(_stack_unfolded)
+        measure(cfg, k, ss, batch)
+    PathDecoder._stack = folded
 
 
-def measure(cfg: ModelConfig, k: int, supersample: int):
+def measure(cfg: ModelConfig, k: int, supersample: int, B: int = B):
     tcfg = TrainConfig()
     torch.manual_seed(0)
     model = Im2Vec(cfg)

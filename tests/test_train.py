@@ -1,3 +1,4 @@
+import dataclasses
 import json
 import os
 import subprocess
@@ -86,6 +87,38 @@ def test_resume_is_exact(tmp_path, shapes):
     assert a["step"] == b["step"] == 6
     for k in a["model"]:
         assert torch.allclose(a["model"][k], b["model"][k], atol=1e-6), k
+
+
+def test_ema_resumes_exactly_and_is_exported(tmp_path, shapes):
+    """``ema``: the averaged weights resume exactly, are what the run and ``export`` write,
+    and differ from the raw weights; validation logs both."""
+    from im2vec_cli.checkpoint import export_checkpoint, from_pretrained
+    from im2vec_cli.errors import Im2VecError
+
+    cfg = fast_cfg(steps=6, ckpt_every=3, ema=0.9, val_every=6)
+    straight = tmp_path / "a"
+    out = train(None, straight, MODEL, cfg, images=shapes)
+    split = tmp_path / "b"
+    with pytest.raises(KeyboardInterrupt):
+        train(None, split, MODEL, dataclasses.replace(cfg, ckpt_every=100), images=shapes, on_event=_stop_after(3))
+    mid = torch.load(split / "checkpoint.pt", weights_only=False)
+    train(None, split, MODEL, cfg, images=shapes, resume=True)
+    a = torch.load(straight / "checkpoint.pt", weights_only=False)
+    b = torch.load(split / "checkpoint.pt", weights_only=False)
+    for k in a["ema"]:
+        assert torch.allclose(a["ema"][k].float(), b["ema"][k].float(), atol=1e-6), k
+    name = next(k for k in a["model"] if k.endswith("weight"))
+    raw, avg = a["model"][name], a["ema"]["module." + name]
+    assert not torch.allclose(raw, avg)
+    assert int(a["ema"]["n_averaged"]) == 6 and int(mid["ema"]["n_averaged"]) == 3
+    exported = from_pretrained(out).state_dict()[name]
+    assert torch.allclose(exported, avg)
+    again, step = export_checkpoint(straight, tmp_path / "exp")
+    assert step == 6 and torch.allclose(from_pretrained(again).state_dict()[name], avg)
+    val = [json.loads(x) for x in (straight / "metrics.jsonl").read_text().splitlines() if '"val"' in x][-1]
+    assert val["val_mse"] != val["raw_val_mse"]
+    with pytest.raises(Im2VecError, match="ema"):
+        train(None, tmp_path / "bad", MODEL, fast_cfg(ema=1.0), images=shapes)
 
 
 def _stop_after(n):

@@ -109,6 +109,7 @@ class TrainConfig(_Config):
     supersample: int = 1  # > 1: the finest loss level is box-filtered from sub-pixels, like the SVG's antialiased render
     pyramid: str = "blur"  # coarser loss levels: "blur" (pyramid of the render, as the target's) or "render" (see render_pyramid)
     lr_final: float = 0.1  # cosine decay to lr * lr_final
+    ema: float = 0.0  # > 0: keep an exponential moving average of the weights with this decay; val and export use it
     seed: int = 0
     val_fraction: float = 0.05
     val_every: int = 250

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import torch
 import torch.distributed as dist
+from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
 
 from .checkpoint import _unwrap, load_checkpoint, save_checkpoint, save_pretrained
 from .config import ModelConfig, TrainConfig
@@ -243,6 +244,11 @@ def train(
     # ---- optimiser
     opt = Lookahead(torch.optim.RAdam(model.parameters(), lr=train_cfg.lr), train_cfg.lookahead_k,
                     train_cfg.lookahead_alpha)
+    if not 0.0 <= train_cfg.ema < 1.0:
+        raise Im2VecError(f"ema must be in [0, 1), got {train_cfg.ema}")
+    ema = None
+    if train_cfg.ema > 0:  # ema.module: the averaged copy of the model (its first update copies the weights)
+        ema = AveragedModel(model, multi_avg_fn=get_ema_multi_avg_fn(train_cfg.ema), use_buffers=True)
     gen = torch.Generator().manual_seed(train_cfg.seed * 1000 + rank)
     step = 0
     ckpt_path = run_dir / "checkpoint.pt"
@@ -252,6 +258,8 @@ def train(
             raise Im2VecError(f"{ckpt_path}: was trained with a different model config")
         model.load_state_dict(state["model"])
         opt.load_state_dict(state["optimizer"])
+        if ema is not None and state.get("ema") is not None:  # else its first update copies the weights
+            ema.load_state_dict(state["ema"])
         step = state["step"]
         gen.set_state(state["generator"][rank] if rank < len(state["generator"]) else state["generator"][0])
         torch.set_rng_state(state["torch_rng"])
@@ -283,6 +291,7 @@ def train(
         if main:
             save_checkpoint(ckpt_path, {
                 "model": model.state_dict(), "optimizer": opt.state_dict(), "step": step, "generator": gens,
+                "ema": ema.state_dict() if ema is not None else None,
                 "torch_rng": torch.get_rng_state(),
                 "cuda_rng": torch.cuda.get_rng_state(device) if device.type == "cuda" else None,
                 "model_config": model_cfg.to_dict(), "train_config": train_cfg.to_dict(),
@@ -310,6 +319,8 @@ def train(
             step += 1
             if finite:
                 opt.step()
+                if ema is not None:
+                    ema.update_parameters(model)
                 bad_run = 0
             else:  # skip the update: the weights never see a NaN or inf
                 opt.zero_grad()
@@ -330,20 +341,24 @@ def train(
                 t_last, n_last = now, 0
             if step % train_cfg.val_every == 0 or step == train_cfg.steps:
                 if main:
-                    log({"event": "val", "step": step, **evaluate_l2(model, val_x, model_cfg.segments, train_cfg.tau_end,
-                                                                 supersample=train_cfg.supersample,
-                                                                 pyramid=train_cfg.pyramid),
-                         "time": time.time()})
+                    val = lambda m: evaluate_l2(m, val_x, model_cfg.segments, train_cfg.tau_end,  # noqa: E731
+                                                supersample=train_cfg.supersample, pyramid=train_cfg.pyramid)
+                    rec = {"event": "val", "step": step, **val(model)}
+                    if ema is not None:  # the averaged weights are the ones exported
+                        rec = {**rec, **{f"raw_{k}": v for k, v in rec.items() if k not in ("event", "step")},
+                               **val(ema.module)}
+                    log({**rec, "time": time.time()})
             if main and (step % train_cfg.preview_every == 0 or step == train_cfg.steps):
                 atomic_write(run_dir / f"preview_{step:07d}.png",
-                             preview_grid(model, val_x[:8], model_cfg.segments, train_cfg.tau_end))
+                             preview_grid(ema.module if ema is not None else model, val_x[:8], model_cfg.segments,
+                                          train_cfg.tau_end))
             if step % train_cfg.ckpt_every == 0 or step == train_cfg.steps:
                 checkpoint()
     except KeyboardInterrupt:
         checkpoint()
         raise
     if main:
-        save_pretrained(model, run_dir / "model")
+        save_pretrained(ema.module if ema is not None else model, run_dir / "model")
     if world > 1:
         dist.barrier()
     return run_dir / "model"

@@ -52,12 +52,21 @@ class PathDecoder(nn.Module):
             nn.init.zeros_(self.deform[-1].weight)
             nn.init.zeros_(self.deform[-1].bias)
 
-    def _fuse(self, theta: torch.Tensor, types: torch.Tensor, code: torch.Tensor) -> torch.Tensor:
-        n, m = theta.shape
-        return torch.cat(
-            [torch.stack([theta.cos(), theta.sin()], 1), types.expand(n, -1, -1), code.unsqueeze(-1).expand(-1, -1, m)],
-            1,
-        )  # (N, 4 + C, 3k)
+    @staticmethod
+    def _stack(stack: nn.Sequential, theta: torch.Tensor, types: torch.Tensor, code: torch.Tensor) -> torch.Tensor:
+        """Run a circular stack on the fused ``[cos t, sin t, types, code]`` ``(N, 4 + C, 3k)``.
+
+        The code is constant along the circle, so the first conv's share of it is one
+        matrix product per path (its taps summed) added as a bias: the same output as the
+        conv over all 4 + C channels, at a fraction of the cost (``theta (N, 3k)``,
+        ``types (1, 2, 3k)``, ``code (N, C)``).
+        """
+        first = stack[0]
+        geom = torch.cat([torch.stack([theta.cos(), theta.sin()], 1), types.expand(theta.shape[0], -1, -1)], 1)
+        w = first.weight  # (W, 4 + C, 3)
+        h = nn.functional.conv1d(nn.functional.pad(geom, (1, 1), mode="circular"), w[:, :4])  # (N, W, 3k)
+        h = h + nn.functional.linear(code, w[:, 4:].sum(-1), first.bias).unsqueeze(-1)
+        return stack[1:](h)
 
     def forward(self, code: torch.Tensor, k: int, centre: torch.Tensor | None = None) -> torch.Tensor:
         """``code (N, C)``, ``centre (N, 2)`` start position of each path in [0, 1] (default 0.5)."""
@@ -66,9 +75,9 @@ class PathDecoder(nn.Module):
         types = point_types(k, code.device, code.dtype).unsqueeze(0)  # (1, 2, 3k)
         if self.deform is not None:
             # bounded shift: at most half the spacing, so points keep their circular order
-            shift = torch.tanh(self.deform(self._fuse(theta, types, code))[:, 0]) * (math.pi / (3 * k))
+            shift = torch.tanh(self._stack(self.deform, theta, types, code)[:, 0]) * (math.pi / (3 * k))
             theta = theta + shift  # (N, 3k)
-        out = self.net(self._fuse(theta, types, code))  # (N, 2, 3k)
+        out = self._stack(self.net, theta, types, code)  # (N, 2, 3k)
         base = torch.stack([theta.cos(), theta.sin()], 1) * 0.2  # (N, 2, 3k)
         offset = torch.zeros(n, 2, 1, device=code.device, dtype=code.dtype)
         if centre is not None:
