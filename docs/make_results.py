@@ -61,17 +61,31 @@ def machine() -> str:
     return f"{cpu}, {os.cpu_count()} cores, {gpu}, torch {torch.__version__}, Python {platform.python_version()}"
 
 
+def _command(name: str, args: list[str]) -> tuple[Path, list[str], str]:
+    """The result file, the `im2vec eval` arguments and the command as shown for ``name``."""
+    out = OUT / f"{name}.json"
+    cmd = ["eval", *args, "-o", str(out.relative_to(ROOT))]
+    return out, cmd, "im2vec " + " ".join(shlex.quote(a) for a in cmd)
+
+
+def _earlier(name: str, args: list[str]) -> dict | None:
+    """The result an earlier run of exactly this command left in docs/results/, if any."""
+    out, _, shown = _command(name, args)
+    if out.is_file():
+        res = json.loads(out.read_text())
+        if res.get("command") == shown:
+            return res
+    return None
+
+
 def run_eval(name: str, args: list[str], reuse: bool = False) -> dict:
     """Run `im2vec eval ARGS -o docs/results/NAME.json`; returns the JSON with the command
     and its wall time added (with ``reuse``, an earlier result of the same command)."""
-    out = OUT / f"{name}.json"
-    cmd = ["eval", *args, "-o", str(out.relative_to(ROOT))]
-    shown = "im2vec " + " ".join(shlex.quote(a) for a in cmd)
-    if reuse and out.is_file():
-        res = json.loads(out.read_text())
-        if res.get("command") == shown:
-            print(f"reused: {shown}", file=sys.stderr, flush=True)
-            return res
+    out, cmd, shown = _command(name, args)
+    res = _earlier(name, args) if reuse else None
+    if res is not None:
+        print(f"reused: {shown}", file=sys.stderr, flush=True)
+        return {**res, "reused": True}
     print(f"$ {shown}", file=sys.stderr, flush=True)
     t = time.perf_counter()
     subprocess.run(EXE + cmd, cwd=ROOT, check=True)
@@ -105,7 +119,8 @@ def main():
     ap.add_argument("--pairs", type=int, default=250, help="Training pairs (interpolation).")
     ap.add_argument("--only", default=None, help="Comma-separated dataset names to run (default: all).")
     ap.add_argument("--reuse", action="store_true",
-                    help="Keep the figures already in docs/results/ (of an interrupted run) instead of rerunning them.")
+                    help="Keep the figures already in docs/results/ (of an interrupted run) instead of rerunning "
+                         "them; their datasets need not be present.")
     args = ap.parse_args()
     data = Path(args.data).resolve()
     only = set(args.only.split(",")) if args.only else None
@@ -115,25 +130,27 @@ def main():
     for label, model, ds in MODELS:
         if only and ds not in only:
             continue
-        if not (ROOT / model / "config.json").is_file() or not (data / ds).is_dir():
+        extra = ["--train-data", str(data / ds), "--samples", str(args.samples), "--pairs", str(args.pairs)]
+        cmd = ["--model", model, "--data", str(data / ds), "--limit", str(args.limit), *extra]
+        if not (ROOT / model / "config.json").is_file() or not (
+                (data / ds).is_dir() or args.reuse and _earlier(label.replace(" ", "-"), cmd)):
             skipped.append(f"{label} ({model} or {data / ds} missing)")
             continue
-        extra = ["--train-data", str(data / ds), "--samples", str(args.samples), "--pairs", str(args.pairs)]
-        results[label] = run_eval(label.replace(" ", "-"), ["--model", model, "--data", str(data / ds), "--limit",
-                                                           str(args.limit), *extra], args.reuse)
+        results[label] = run_eval(label.replace(" ", "-"), cmd, args.reuse)
         results[label]["model_dir"] = model
 
     sweeps = {}
     for label, model, ds in SWEEPS:
         if only and ds not in only:
             continue
-        if not (ROOT / model / "config.json").is_file() or not (data / ds).is_dir():
+        name = "sweep-" + Path(model).name
+        cmd = ["--model", model, "--data", str(data / ds), "--limit", str(args.sweep_limit), "--sweep", "6-25",
+               "--plot", str((OUT / f"{name}.png").relative_to(ROOT))]
+        if not (ROOT / model / "config.json").is_file() or not (
+                (data / ds).is_dir() or args.reuse and _earlier(name, cmd)):
             skipped.append(f"ablation: {label} ({model} or {data / ds} missing)")
             continue
-        name = "sweep-" + Path(model).name
-        sweeps[label] = run_eval(name, ["--model", model, "--data", str(data / ds), "--limit",
-                                        str(args.sweep_limit), "--sweep", "6-25", "--plot",
-                                        str((OUT / f"{name}.png").relative_to(ROOT))], args.reuse)
+        sweeps[label] = run_eval(name, cmd, args.reuse)
         sweeps[label]["model_dir"] = model
     if any(label.startswith("mnist") for label in sweeps):
         from im2vec_cli.evaluate import sweep_plot
@@ -143,16 +160,18 @@ def main():
         (OUT / "sweep-mnist.png").write_bytes(sweep_plot(series, "MNIST: deformation in training vs not"))
 
     evals_s = sum(r["wall_s"] for r in [*results.values(), *sweeps.values()])
-    write_markdown(results, sweeps, skipped, args, evals_s)
+    reused = sum(bool(r.get("reused")) for r in [*results.values(), *sweeps.values()])
+    write_markdown(results, sweeps, skipped, args, evals_s, reused)
 
 
-def write_markdown(results, sweeps, skipped, args, total_s):
+def write_markdown(results, sweeps, skipped, args, total_s, reused: int = 0):
     now = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     L = [
         "# Results: the paper's tables, reproduced",
         "",
         f"Written by `make results` (`python docs/make_results.py`) on {now}; its evals took {total_s / 60:.0f} min on",
-        f"{machine()}. Do not edit by hand: rerun the target.",
+        f"{machine()}" + (f" ({reused} of them kept from an earlier run with `--reuse`, as the table at the end records)"
+                          if reused else "") + ". Do not edit by hand: rerun the target.",
         "",
         "All figures are MSE on [0, 1] pixels (± standard error), measured on what a user gets: the",
         "SVG `im2vec vectorize` writes, rendered by cairosvg (the ImageVAE baseline: its raster output).",

@@ -137,8 +137,11 @@ def export_checkpoint(run_dir: str | Path, out_dir: str | Path, *, half: bool = 
     state = load_checkpoint(Path(run_dir) / "checkpoint.pt")
     model = build_model(ModelConfig.from_dict(state["model_config"]))
     if state.get("ema") is not None:  # a run with TrainConfig.ema exports the averaged weights
-        ema = {k.removeprefix("module."): v for k, v in state["ema"].items() if k.startswith("module.")}
-        model.load_state_dict(ema, strict=True)
+        from torch.optim.swa_utils import AveragedModel
+
+        averaged = AveragedModel(model, use_buffers=True)
+        averaged.load_state_dict(state["ema"], strict=True)
+        model = averaged.module
     else:
         model.load_state_dict(state["model"], strict=True)
     return save_pretrained(model, out_dir, half=half), int(state["step"])

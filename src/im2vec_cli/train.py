@@ -247,8 +247,10 @@ def train(
     if not 0.0 <= train_cfg.ema < 1.0:
         raise Im2VecError(f"ema must be in [0, 1), got {train_cfg.ema}")
     ema = None
-    if train_cfg.ema > 0:  # ema.module: the averaged copy of the model (its first update copies the weights)
+    if train_cfg.ema > 0 and main:  # ema.module: the averaged copy (its first update copies the weights); only
+        # rank 0 validates, previews and saves, and DDP keeps every rank's weights equal, so only it averages
         ema = AveragedModel(model, multi_avg_fn=get_ema_multi_avg_fn(train_cfg.ema), use_buffers=True)
+    exported = ema.module if ema is not None else model  # the weights validation, previews and exports show
     gen = torch.Generator().manual_seed(train_cfg.seed * 1000 + rank)
     step = 0
     ckpt_path = run_dir / "checkpoint.pt"
@@ -346,11 +348,11 @@ def train(
                     rec = {"event": "val", "step": step, **val(model)}
                     if ema is not None:  # the averaged weights are the ones exported
                         rec = {**rec, **{f"raw_{k}": v for k, v in rec.items() if k not in ("event", "step")},
-                               **val(ema.module)}
+                               **val(exported)}
                     log({**rec, "time": time.time()})
             if main and (step % train_cfg.preview_every == 0 or step == train_cfg.steps):
                 atomic_write(run_dir / f"preview_{step:07d}.png",
-                             preview_grid(ema.module if ema is not None else model, val_x[:8], model_cfg.segments,
+                             preview_grid(exported, val_x[:8], model_cfg.segments,
                                           train_cfg.tau_end))
             if step % train_cfg.ckpt_every == 0 or step == train_cfg.steps:
                 checkpoint()
@@ -358,7 +360,7 @@ def train(
         checkpoint()
         raise
     if main:
-        save_pretrained(ema.module if ema is not None else model, run_dir / "model")
+        save_pretrained(exported, run_dir / "model")
     if world > 1:
         dist.barrier()
     return run_dir / "model"
