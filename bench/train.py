@@ -49,7 +49,7 @@ def _stack_unfolded(stack, theta, types, code):
 
 def main():
     print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, compile={os.environ.get('IM2VEC_COMPILE', '1')}")
-    folded = PathDecoder._stack
+    folded = PathDecoder.__dict__["_stack"]  # the staticmethod object: the attribute is a plain function
     for name, (cfg, k, ss, batch, fold) in CONFIGS.items():
         print(f"== {name}")
         PathDecoder._stack = folded if fold else staticmethod(_stack_unfolded)

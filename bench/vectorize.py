@@ -5,7 +5,8 @@ training split (default: Liberation Sans Narrow, 4 styles, 248 glyphs, from the 
 package fonts-liberation), rendered exactly like the Fonts dataset, with the true outline
 from fontTools.
 
-Tools, on the same images in one run: im2vec amortised, im2vec refined, potrace (defaults),
+Tools, on the same images in one run: im2vec amortised, im2vec refined (`--effort fast`, the
+default, and `--effort best`), potrace (defaults),
 potrace on a 4x bilinear upsample, vtracer (binary mode), and the trivial baseline (bilinear
 4x upsample thresholded at 0.5).
 
@@ -47,12 +48,13 @@ from im2vec_cli.evaluate import outline_iou, svg_mask  # noqa: E402
 from im2vec_cli.infer import vectorize  # noqa: E402
 from im2vec_cli.io import load_image  # noqa: E402
 from im2vec_cli.raster._compile import set_compile  # noqa: E402
-from im2vec_cli.refine import RefineSettings, refine  # noqa: E402
+from im2vec_cli.refine import EFFORTS, RefineSettings, refine  # noqa: E402
 from im2vec_cli.svg import rasterize_svg, to_svg  # noqa: E402
 
 SIZE, UP = 64, 4
 COMPACT = {"quality": 2e-3, "simplify": 1.0}  # the compact preset, as CLI options below
-COMPACT_NAME = "im2vec refined, compact"  # --segments auto --quality 2e-3 --simplify 1
+FAST_NAME = "im2vec refined, fast"  # `vectorize --effort fast`, the CLI's default for one image
+COMPACT_NAME = "im2vec refined, compact"  # --effort best --segments auto --quality 2e-3 --simplify 1
 ANCHORS = {  # the issue's figures, same kind of machine, 248 DejaVu/Liberation glyphs at 64 px
     "potrace": (0.932, 12.6, 5.3),
     "potrace 4x upsample": (0.9716, 41.7, None),
@@ -225,6 +227,9 @@ def main():
     def refined(g):
         return to_svg(refine(model, images[g["name"]], **opts)[0])
 
+    def refined_fast(g):
+        return to_svg(refine(model, images[g["name"]], settings=EFFORTS["fast"], **opts)[0])
+
     compact = RefineSettings(simplify_tol=COMPACT["simplify"])
 
     def refined_compact(g):
@@ -233,6 +238,7 @@ def main():
 
     tools = {
         "im2vec amortised": amortised,
+        FAST_NAME: None if args.skip_refined else refined_fast,
         "im2vec refined": None if args.skip_refined else refined,
         COMPACT_NAME: None if args.skip_refined or opts or model.segment_predictor is None else refined_compact,
         "potrace": lambda g: potrace(g["png"]),
@@ -292,7 +298,7 @@ def markdown(rows: dict, n: int, args) -> str:
         anchor = "" if a is None else " / ".join("–" if v is None else f"{v:g}" for v in a)
         lines.append(f"| {name} | {r['iou']:.4f} | {r['mse']:.5f} | {f(r.get('segments'), '.1f')} | "
                      f"{f(r.get('bytes'), '.0f')} | {f(r.get('ms'), '.1f')} | {f(r.get('valid'), '.3f')} | {anchor} |")
-    for name in ("im2vec refined", COMPACT_NAME):
+    for name in (FAST_NAME, "im2vec refined", COMPACT_NAME):
         r = rows.get(name)
         if r:
             ok = r["iou"] >= 0.98 and r["segments"] <= 13 and r["ms"] <= 1000
@@ -301,8 +307,9 @@ def markdown(rows: dict, n: int, args) -> str:
                          f"{'met' if ok else 'not met'}.")
     opts = f" --segments {args.segments}" if args.segments else ""
     opts += f" --quality {args.quality}" if args.quality else ""
-    note = (f"\n\n*{COMPACT_NAME}*: `im2vec vectorize IMG --segments auto --quality {COMPACT['quality']:g} "
-            f"--simplify {COMPACT['simplify']:g}`; *im2vec refined*: `im2vec vectorize IMG` (the default for one image).")
+    note = (f"\n\n*{COMPACT_NAME}*: `im2vec vectorize IMG --effort best --segments auto --quality {COMPACT['quality']:g} "
+            f"--simplify {COMPACT['simplify']:g}`; *{FAST_NAME}*: `im2vec vectorize IMG` (the default for one image, "
+            f"`--effort fast`); *im2vec refined*: `im2vec vectorize IMG --effort best`.")
     head = (f"# Vectorize fidelity against potrace and vtracer\n\nWritten by `make bench-vectorize` "
             f"({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} CPU cores, torch "
             f"{torch.__version__}). All tools on the same images in one run; see bench/vectorize.py for the "

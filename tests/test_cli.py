@@ -161,3 +161,11 @@ def test_vectorize_refine_flag(tmp_path, model_dir):
         set_compile(None)
     assert res.exit_code == 0, res.output
     check_svg((tmp_path / "a.svg").read_text(), 40, 24)
+    try:
+        res = run(["vectorize", src, "-o", str(tmp_path / "b.svg"), "--model", model_dir, "--effort", "best"])
+    finally:
+        set_compile(None)
+    assert res.exit_code == 0, res.output
+    check_svg((tmp_path / "b.svg").read_text(), 40, 24)
+    res = run(["vectorize", src, "-o", str(tmp_path / "c.svg"), "--model", model_dir, "--effort", "slow"])
+    assert res.exit_code == 2 and not (tmp_path / "c.svg").exists()

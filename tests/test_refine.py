@@ -11,7 +11,7 @@ from im2vec_cli.checkpoint import REPO_MODELS, from_pretrained
 from im2vec_cli.infer import vectorize
 from im2vec_cli.io import load_image
 from im2vec_cli.raster._compile import set_compile
-from im2vec_cli.refine import RefineSettings, refine
+from im2vec_cli.refine import EFFORTS, RefineSettings, refine
 from im2vec_cli.svg import rasterize_svg, to_svg
 from tests.helpers import check_svg, make_tiny_model
 
@@ -45,6 +45,25 @@ def test_refinement_lowers_the_error_on_real_glyphs():
         before.append(_cairo_mse(vectorize(model, [img])[0], img))
         after.append(_cairo_mse(vec, img))
     assert np.mean(after) < 0.7 * np.mean(before), (before, after)
+
+
+@pytest.mark.skipif(not (REPO_MODELS / "fonts" / "config.json").exists(), reason="no shipped fonts model")
+def test_efforts_trade_steps_for_error_on_real_glyphs():
+    """`vectorize --effort fast` (the CLI default) stays within its step budget and beats the
+    amortised guess; "best" fits closer (cairosvg MSE against the input, 4 test-split glyphs)."""
+    model = from_pretrained("fonts")
+    fast_s = EFFORTS["fast"]
+    amortised, fast, best = [], [], []
+    for f in sorted(ASSETS.glob("*.png"))[4:8]:
+        img = load_image(f)
+        vec, info = refine(model, img, settings=fast_s)
+        assert info["latent_steps"] <= fast_s.latent_steps and info["point_steps"] <= fast_s.point_steps
+        assert info["polish_steps"] <= fast_s.polish_steps
+        fast.append(_cairo_mse(vec, img))
+        best.append(_cairo_mse(refine(model, img, settings=EFFORTS["best"])[0], img))
+        amortised.append(_cairo_mse(vectorize(model, [img])[0], img))
+    assert np.mean(fast) < 0.7 * np.mean(amortised), (amortised, fast)
+    assert np.mean(best) < np.mean(fast), (fast, best)
 
 
 def test_refinement_handles_other_sizes(tmp_path):

@@ -401,17 +401,21 @@ def _load_input_image(item):
 @click.option("--refine/--no-refine", default=None,
               help="Fit the paths to each input by gradient descent through the renderer (slower, more exact). "
                    "[on for a single image, off for several]")
+@click.option("--effort", type=click.Choice(["fast", "best"]), default="fast", show_default=True,
+              help="With refinement: fast (about 0.3 s per 64 px glyph on a CPU) or best (about 1 s, "
+                   "half the pixel error).")
 @click.option("--simplify", "simplify_px", type=click.FloatRange(0), default=None,
               help="Merge segments while the outline moves less than this many input pixels. [0.25 with --refine, else 0]")
 @_model_options
 @click.pass_context
-def vectorize(ctx, inputs, output, segments, quality, max_paths, refine, simplify_px, model_name, device, seed):
+def vectorize(ctx, inputs, output, segments, quality, max_paths, refine, effort, simplify_px, model_name, device,
+              seed):
     """Vectorize images (PNG/JPG, any size) into SVGs of closed cubic paths.
 
     The SVG's viewBox is the input's pixel grid, so it overlays the input exactly.
     `-` reads one image from stdin; with -o - the SVG goes to stdout. A single image is
-    refined against itself (about 1 s on a CPU); several are vectorized in batches by the
-    model alone unless --refine is given.
+    refined against itself (--effort); several are vectorized in batches by the model alone
+    unless --refine is given.
     """
     from .infer import vectorize as amortised
     from .svg import to_svg
@@ -433,12 +437,12 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, refine, simplif
         import os
 
         from .raster._compile import set_compile
-        from .refine import RefineSettings
+        from .refine import EFFORTS
         from .refine import refine as fit
 
         if "IM2VEC_COMPILE" not in os.environ:
             set_compile(False)  # per-image shapes: compiling would cost more than it saves
-        settings = RefineSettings()
+        settings = EFFORTS[effort]
         if simplify_px is not None:
             settings = dataclasses.replace(settings, simplify_tol=simplify_px)
         run = lambda model, imgs, **kw: [fit(model, im, settings=settings, **kw)[0] for im in imgs]  # noqa: E731

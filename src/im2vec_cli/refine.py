@@ -58,6 +58,16 @@ class RefineSettings:
     # polygon lets the fit bend the true curve away from the edge (IoU@4x 0.972 with the model's 4)
 
 
+# Named efforts (`vectorize --effort`). "best" is ``RefineSettings()``; "fast" takes about a
+# third of the steps and a coarser polish polygon: on 62 held-out Liberation Sans Narrow glyphs
+# at 64 px (fonts model) IoU@4x 0.9855 and MSE 0.00051 in 0.26 s per glyph, against 0.9913,
+# 0.00022 and 0.79 s (potrace: 0.932), so that one `vectorize` stays within 2 s with torch's import.
+EFFORTS = {
+    "fast": RefineSettings(latent_steps=5, point_steps=25, polish_steps=15, polish_samples=8),
+    "best": RefineSettings(),
+}
+
+
 def _geometry_penalty(points: torch.Tensor, real: torch.Tensor, size: tuple[int, int], s: RefineSettings) -> torch.Tensor:
     """Keep control points near the canvas and segments from collapsing.
 
