@@ -402,7 +402,7 @@ def _load_input_image(item):
               help="Fit the paths to each input by gradient descent through the renderer (slower, more exact). "
                    "[on for a single image, off for several]")
 @click.option("--effort", type=click.Choice(["fast", "best"]), default="fast", show_default=True,
-              help="With refinement: fast (about 0.3 s per 64 px glyph on a CPU) or best (about 1 s, "
+              help="With refinement: fast (0.3-0.5 s per 64 px glyph on a CPU) or best (about 1 s, "
                    "half the pixel error).")
 @click.option("--simplify", "simplify_px", type=click.FloatRange(0), default=None,
               help="Merge segments while the outline moves less than this many input pixels. [0.25 with --refine, else 0]")

@@ -61,7 +61,9 @@ class RefineSettings:
 # Named efforts (`vectorize --effort`). "best" is ``RefineSettings()``; "fast" takes about a
 # third of the steps and a coarser polish polygon: on 62 held-out Liberation Sans Narrow glyphs
 # at 64 px (fonts model) IoU@4x 0.9855 and MSE 0.00051 in 0.26 s per glyph, against 0.9913,
-# 0.00022 and 0.79 s (potrace: 0.932), so that one `vectorize` stays within 2 s with torch's import.
+# 0.00022 and 0.79 s (on all 248 glyphs, `make bench-vectorize`: 0.9867 / 0.00036 in 0.44 s against
+# 0.9914 / 0.00018 in 1.01 s; potrace 0.9524 / 0.00283), so that one `vectorize` fits in about 2 s
+# with torch's import.
 EFFORTS = {
     "fast": RefineSettings(latent_steps=5, point_steps=25, polish_steps=15, polish_samples=8),
     "best": RefineSettings(),
