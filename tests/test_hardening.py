@@ -411,6 +411,7 @@ def _no_output(d: Path):
 def _one_error_line(stderr: str):
     lines = stderr.strip().splitlines()
     assert "Traceback" not in stderr
+    assert " object at 0x" not in stderr, stderr  # a Python repr is not a message for the user
     assert sum(line.startswith("Error:") for line in lines) == 1, stderr
 
 

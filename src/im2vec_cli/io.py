@@ -88,6 +88,8 @@ def open_image(data: bytes, name: str = "<image>") -> Image.Image:
         raise InputError(f"{name}: image too large (decompression bomb): {exc}") from None
     except MemoryError:
         raise InputError(f"{name}: not enough memory to decode this image") from None
+    except Image.UnidentifiedImageError:  # its message names our in-memory buffer, not the file
+        raise InputError(f"{name}: not a readable image (no image format Pillow knows, e.g. PNG or JPG)") from None
     except Exception as exc:  # noqa: BLE001 - any decoder failure on arbitrary bytes is a bad file
         raise InputError(f"{name}: not a readable image ({_one_line(exc)})") from None
     if min(img.width, img.height) < MIN_SIDE:
