@@ -78,14 +78,13 @@ def _earlier(name: str, args: list[str]) -> dict | None:
     return None
 
 
-def run_eval(name: str, args: list[str], reuse: bool = False) -> dict:
+def run_eval(name: str, args: list[str], earlier: dict | None = None) -> dict:
     """Run `im2vec eval ARGS -o docs/results/NAME.json`; returns the JSON with the command
-    and its wall time added (with ``reuse``, an earlier result of the same command)."""
+    and its wall time added, or ``earlier`` (``_earlier``'s result, kept with ``--reuse``)."""
     out, cmd, shown = _command(name, args)
-    res = _earlier(name, args) if reuse else None
-    if res is not None:
+    if earlier is not None:
         print(f"reused: {shown}", file=sys.stderr, flush=True)
-        return {**res, "reused": True}
+        return {**earlier, "reused": True}
     print(f"$ {shown}", file=sys.stderr, flush=True)
     t = time.perf_counter()
     subprocess.run(EXE + cmd, cwd=ROOT, check=True)
@@ -130,13 +129,14 @@ def main():
     for label, model, ds in MODELS:
         if only and ds not in only:
             continue
+        name = label.replace(" ", "-")
         extra = ["--train-data", str(data / ds), "--samples", str(args.samples), "--pairs", str(args.pairs)]
         cmd = ["--model", model, "--data", str(data / ds), "--limit", str(args.limit), *extra]
-        if not (ROOT / model / "config.json").is_file() or not (
-                (data / ds).is_dir() or args.reuse and _earlier(label.replace(" ", "-"), cmd)):
+        earlier = _earlier(name, cmd) if args.reuse else None
+        if not (ROOT / model / "config.json").is_file() or not ((data / ds).is_dir() or earlier):
             skipped.append(f"{label} ({model} or {data / ds} missing)")
             continue
-        results[label] = run_eval(label.replace(" ", "-"), cmd, args.reuse)
+        results[label] = run_eval(name, cmd, earlier)
         results[label]["model_dir"] = model
 
     sweeps = {}
@@ -146,11 +146,11 @@ def main():
         name = "sweep-" + Path(model).name
         cmd = ["--model", model, "--data", str(data / ds), "--limit", str(args.sweep_limit), "--sweep", "6-25",
                "--plot", str((OUT / f"{name}.png").relative_to(ROOT))]
-        if not (ROOT / model / "config.json").is_file() or not (
-                (data / ds).is_dir() or args.reuse and _earlier(name, cmd)):
+        earlier = _earlier(name, cmd) if args.reuse else None
+        if not (ROOT / model / "config.json").is_file() or not ((data / ds).is_dir() or earlier):
             skipped.append(f"ablation: {label} ({model} or {data / ds} missing)")
             continue
-        sweeps[label] = run_eval(name, cmd, args.reuse)
+        sweeps[label] = run_eval(name, cmd, earlier)
         sweeps[label]["model_dir"] = model
     if any(label.startswith("mnist") for label in sweeps):
         from im2vec_cli.evaluate import sweep_plot

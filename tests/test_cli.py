@@ -169,3 +169,12 @@ def test_vectorize_refine_flag(tmp_path, model_dir):
     check_svg((tmp_path / "b.svg").read_text(), 40, 24)
     res = run(["vectorize", src, "-o", str(tmp_path / "c.svg"), "--model", model_dir, "--effort", "slow"])
     assert res.exit_code == 2 and not (tmp_path / "c.svg").exists()
+
+
+def test_effort_choices_are_the_refine_presets():
+    # cli.py spells the names out so that `--help` does not import torch through refine.py
+    from im2vec_cli.cli import vectorize
+    from im2vec_cli.refine import EFFORTS
+
+    option = next(p for p in vectorize.params if p.name == "effort")
+    assert list(option.type.choices) == list(EFFORTS) and option.default in EFFORTS

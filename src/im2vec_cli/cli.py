@@ -401,7 +401,7 @@ def _load_input_image(item):
 @click.option("--refine/--no-refine", default=None,
               help="Fit the paths to each input by gradient descent through the renderer (slower, more exact). "
                    "[on for a single image, off for several]")
-@click.option("--effort", type=click.Choice(["fast", "best"]), default="fast", show_default=True,
+@click.option("--effort", type=click.Choice(["fast", "best"]), default="fast", show_default=True,  # refine.EFFORTS
               help="With refinement: fast (0.3-0.5 s per 64 px glyph on a CPU) or best (about 1 s, "
                    "half the pixel error).")
 @click.option("--simplify", "simplify_px", type=click.FloatRange(0), default=None,

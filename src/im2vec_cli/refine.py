@@ -58,8 +58,9 @@ class RefineSettings:
     # polygon lets the fit bend the true curve away from the edge (IoU@4x 0.972 with the model's 4)
 
 
-# Named efforts (`vectorize --effort`). "best" is ``RefineSettings()``; "fast" takes about a
-# third of the steps and a coarser polish polygon: on 62 held-out Liberation Sans Narrow glyphs
+# Named efforts (`vectorize --effort`, whose choices cli.py spells out to keep torch out of
+# `--help`). "best" is ``RefineSettings()``; "fast" takes about a third of the steps and a
+# coarser polish polygon: on 62 held-out Liberation Sans Narrow glyphs
 # at 64 px (fonts model) IoU@4x 0.9855 and MSE 0.00051 in 0.26 s per glyph, against 0.9913,
 # 0.00022 and 0.79 s (on all 248 glyphs, `make bench-vectorize`: 0.9867 / 0.00036 in 0.44 s against
 # 0.9914 / 0.00018 in 1.01 s; potrace 0.9524 / 0.00283), so that one `vectorize` fits in about 2 s
