@@ -5,7 +5,7 @@ import pytest
 import torch
 
 from im2vec_cli.errors import InputError
-from im2vec_cli.svg import from_svg, from_tensors, rasterize_svg, to_svg, to_tensors
+from im2vec_cli.svg import from_svg, from_tensors, parse_d, rasterize_svg, to_svg, to_tensors
 
 
 def random_image(seed=0):
@@ -55,3 +55,25 @@ def test_to_tensors_pads_segments_without_changing_shape():
 def test_bad_svg_is_a_one_line_error(bad):
     with pytest.raises(InputError):
         from_svg(bad)
+
+
+def test_a_command_after_z_starts_a_subpath_at_the_start_point():
+    # SVG: after closepath the current point is the subpath's start, where the next one begins
+    # (a case the fuzz test found: the reader used to return a contour of 5 points)
+    cs = parse_d("M 5 5 C 6 5 7 5 8 5 C 8 6 8 7 8 8 Z C 7 8 6 8 5 8 Z L 9 9 L 5 9 Z")
+    assert [c.shape for c in cs] == [(9, 2), (6, 2), (9, 2)]
+    assert all(np.array_equal(c[0], [5, 5]) for c in cs)
+    assert np.array_equal(cs[1][3], [5, 8])
+    assert parse_d("M 1 1 Z M 5 5 L 8 5 L 8 8 Z")[0].shape == (9, 2) and len(parse_d("M 1 1 Z")) == 0
+
+
+@pytest.mark.parametrize("d", ["C 1 1 2 2 3 3 Z", "L 1 1 Z"])
+def test_path_data_without_a_first_moveto_is_an_input_error(d):
+    with pytest.raises(InputError, match="must start with M"):
+        parse_d(d)
+
+
+def test_an_open_subpath_before_the_next_moveto_is_an_input_error():
+    # another fuzz find: the open subpath was kept, ending on its last anchor (10 points)
+    with pytest.raises(InputError, match="open subpath"):
+        parse_d("M 2 2 C 5 1 9 1 12 2 C 14 6 14 10 12 14 C 8 15 4 15 2 14 M 5 5 L 8 5 L 8 8 Z")

@@ -88,6 +88,9 @@ def to_svg(image: VectorImage, decimals: int = 2) -> str:
 _TOKEN = re.compile(r"[A-Za-z]|[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 
 
+OPEN_SUBPATH = "open subpath (no Z): im2vec reads closed paths only"
+
+
 def parse_d(d: str) -> list[np.ndarray]:
     """Closed contours of a path made of absolute ``M``, ``C``, ``L`` and ``Z`` commands.
 
@@ -112,14 +115,6 @@ def parse_d(d: str) -> list[np.ndarray]:
         i += k
         return vals
 
-    def close():
-        nonlocal cur
-        if cur:
-            # drop the explicit closing anchor when it repeats the start
-            pts = np.asarray(cur, dtype=np.float64)
-            contours.append(pts)
-        cur = []
-
     while i < len(toks):
         t = toks[i]
         if t.isalpha():
@@ -129,17 +124,22 @@ def parse_d(d: str) -> list[np.ndarray]:
                 if cur and pos is not None and start is not None and not np.allclose(pos, start):
                     a, b = np.asarray(pos), np.asarray(start)
                     cur += [*map(list, line_controls(a, b)), list(b)]
-                if cur:
-                    cur = cur[:-1]  # the last anchor is the start point again
-                close()
+                if len(cur) > 1:  # the last anchor is the start point again ("M x y Z" draws nothing)
+                    contours.append(np.asarray(cur[:-1], dtype=np.float64))
+                cur = []
                 pos = start
                 continue
         if cmd is None:
             raise InputError("path data must start with a command")
         if cmd in "mlc" and cmd.islower():
             raise InputError(f"relative path command {cmd!r} is not supported")
+        if cmd in "LC" and not cur:  # a drawing command after Z starts a new subpath at the last start
+            if pos is None:
+                raise InputError("path data must start with M")
+            cur = [list(pos)]
         if cmd == "M":
-            close()
+            if cur:  # a new subpath before the last one was closed
+                raise InputError(OPEN_SUBPATH)
             start = pos = nums(2)
             cur = [list(pos)]
             cmd = "L"
@@ -155,7 +155,7 @@ def parse_d(d: str) -> list[np.ndarray]:
         else:
             raise InputError(f"unsupported path command {cmd!r}")
     if cur:
-        raise InputError("open subpath (no Z): im2vec reads closed paths only")
+        raise InputError(OPEN_SUBPATH)
     return contours
 
 
