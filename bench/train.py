@@ -20,9 +20,10 @@ sys.path.insert(0, os.path.dirname(__file__))
 
 from im2vec_cli.config import ModelConfig, TrainConfig  # noqa: E402
 from im2vec_cli.model.decoder import PathDecoder  # noqa: E402
-from im2vec_cli.model.vae import Im2Vec, kl_divergence  # noqa: E402
+from im2vec_cli.model.losses import kl_divergence
+from im2vec_cli.model.vae import Im2Vec  # noqa: E402
+from im2vec_cli.optim import Lookahead  # noqa: E402
 from im2vec_cli.raster import gaussian_pyramid, pyramid_l2, render_pyramid  # noqa: E402
-from im2vec_cli.train import Lookahead  # noqa: E402
 
 B = 64
 MNIST = ModelConfig(palette="#000000", paths=3, image_size=32, fit="pad", min_segments=8, max_segments=16)

@@ -41,15 +41,15 @@ from PIL import Image
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
-from im2vec_cli.checkpoint import from_pretrained  # noqa: E402
 from im2vec_cli.data.fonts import DEFAULT_CHARS, _names, find_fonts, render_png, split_of  # noqa: E402
 from im2vec_cli.data.glyphs import glyph_image  # noqa: E402
 from im2vec_cli.evaluate import outline_iou, svg_mask  # noqa: E402
+from im2vec_cli.files import load_image  # noqa: E402
 from im2vec_cli.infer import vectorize  # noqa: E402
-from im2vec_cli.io import load_image  # noqa: E402
-from im2vec_cli.raster._compile import set_compile  # noqa: E402
+from im2vec_cli.model.pretrained import from_pretrained  # noqa: E402
+from im2vec_cli.raster import set_compile  # noqa: E402
 from im2vec_cli.refine import EFFORTS, RefineSettings, refine  # noqa: E402
-from im2vec_cli.svg import rasterize_svg, to_svg  # noqa: E402
+from im2vec_cli.vector import rasterize_svg, to_svg  # noqa: E402
 
 SIZE, UP = 64, 4
 COMPACT = {"quality": 2e-3, "simplify": 1.0}  # the compact preset, as CLI options below

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from im2vec_cli.svg import rasterize_svg
+from im2vec_cli.vector import rasterize_svg
 
 ROOT = Path(__file__).resolve().parents[1]
 EXE = [sys.executable, "-m", "im2vec_cli"]

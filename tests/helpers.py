@@ -11,7 +11,7 @@ from PIL import Image
 from im2vec_cli.cli import cli
 from im2vec_cli.config import ModelConfig
 from im2vec_cli.raster.bezier import line_controls
-from im2vec_cli.svg import rasterize_svg
+from im2vec_cli.vector import rasterize_svg
 
 
 def circle(cx, cy, r, segments=8, dtype=torch.float64):
@@ -54,7 +54,7 @@ def synthetic_shapes(n: int, size: int, seed: int = 0):
     ``(n, 3, size, size)``, rendered by cairosvg."""
     import os
 
-    from im2vec_cli.svg import VectorImage, VectorShape, rasterize_svg, to_svg
+    from im2vec_cli.vector import VectorImage, VectorShape, rasterize_svg, to_svg
 
     g = torch.Generator().manual_seed(seed)
     font = None
@@ -86,7 +86,7 @@ TINY = ModelConfig(image_size=32, latent=16, enc_width=8, lstm_hidden=16, code=8
 
 def make_tiny_model(folder) -> str:
     """Save a small random model (decoder head perturbed so paths are not degenerate)."""
-    from im2vec_cli.checkpoint import save_pretrained
+    from im2vec_cli.model.pretrained import save_pretrained
     from im2vec_cli.model.vae import Im2Vec
 
     torch.manual_seed(0)

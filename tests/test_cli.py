@@ -152,7 +152,7 @@ def test_subprocess_pipeline(tmp_path, model_dir):
 
 
 def test_vectorize_refine_flag(tmp_path, model_dir):
-    from im2vec_cli.raster._compile import set_compile
+    from im2vec_cli.raster import set_compile
 
     src = png(tmp_path / "a.png", 40, 24)
     try:

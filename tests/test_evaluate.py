@@ -7,10 +7,10 @@ import torch
 from click.testing import CliRunner
 from PIL import Image
 
-from im2vec_cli.checkpoint import from_pretrained
 from im2vec_cli.cli import cli
 from im2vec_cli.evaluate import decoded_images, generation_l2, nearest_mse, reconstruction_l2
-from im2vec_cli.svg import VectorImage, VectorShape, rasterize_svg, to_svg
+from im2vec_cli.model.pretrained import from_pretrained
+from im2vec_cli.vector import VectorImage, VectorShape, rasterize_svg, to_svg
 from tests.helpers import make_tiny_model, polyline_as_cubic
 
 

@@ -6,13 +6,14 @@ import dataclasses
 import pytest
 import torch
 
-from im2vec_cli.checkpoint import from_pretrained, save_pretrained
-from im2vec_cli.data.folder import fit_square, load_folder
-from im2vec_cli.infer import Placement, model_input, to_vector, vectorize
-from im2vec_cli.io import tensor_to_png
-from im2vec_cli.model.imagevae import build_model
+from im2vec_cli.data.folder import load_folder
+from im2vec_cli.files import tensor_to_png
+from im2vec_cli.frame import Placement, fit_square
+from im2vec_cli.infer import model_input, to_vector, vectorize
+from im2vec_cli.model import build_model
+from im2vec_cli.model.pretrained import from_pretrained, save_pretrained
 from im2vec_cli.model.vae import Decoded
-from im2vec_cli.svg import rasterize_svg, to_svg
+from im2vec_cli.vector import rasterize_svg, to_svg
 from tests.helpers import TINY, check_svg, make_tiny_model
 
 

@@ -16,8 +16,8 @@ from hypothesis import strategies as st
 from PIL import Image
 
 from im2vec_cli.errors import InputError
-from im2vec_cli.io import load_image
-from im2vec_cli.svg import from_svg, to_tensors
+from im2vec_cli.files import load_image
+from im2vec_cli.vector import from_svg, to_tensors
 
 settings.register_profile("ci", max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 settings.register_profile("long", max_examples=5000, deadline=None, suppress_health_check=[HealthCheck.too_slow])

@@ -447,7 +447,7 @@ def test_bad_input_table(tmp_path, model_dir, name):
 def test_all_black_is_one_canvas_square(tmp_path, model_dir):
     args, _ = in_all_black(tmp_path, model_dir)
     assert _invoke(args, None, model_dir).exit_code == 0
-    from im2vec_cli.svg import rasterize_svg
+    from im2vec_cli.vector import rasterize_svg
 
     img = rasterize_svg((tmp_path / "out.svg").read_text(), 50, 40)
     assert img.max() < 0.01  # every pixel black, as in the input
@@ -527,7 +527,7 @@ def test_batch_of_1000_with_5_percent_bad(tmp_path, model_dir):
 
 def test_batch_streams_in_chunks(tmp_path, model_dir, monkeypatch):
     """At most one chunk of decoded images is alive at any time."""
-    import im2vec_cli.cli as cli_mod
+    import im2vec_cli.cli.convert as cli_mod
     import im2vec_cli.infer as infer
 
     d = tmp_path / "in"
@@ -572,7 +572,7 @@ def test_reliability_doc_lists_every_case():
 
 def test_outputs_get_the_usual_file_mode(tmp_path):
     """Atomic writes go through mkstemp (mode 0600); the final file follows the umask."""
-    from im2vec_cli.io import atomic_write
+    from im2vec_cli.files import atomic_write
 
     old = os.umask(0o022)
     try:

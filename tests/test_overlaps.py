@@ -4,9 +4,8 @@ import numpy as np
 import pytest
 import torch
 
-from im2vec_cli.overlaps import resolve_overlaps, reverse_contour
 from im2vec_cli.raster.bezier import flatten_closed, polygon_area
-from im2vec_cli.svg import VectorImage, VectorShape, rasterize_svg, to_svg
+from im2vec_cli.vector import VectorImage, VectorShape, rasterize_svg, resolve_overlaps, reverse_contour, to_svg
 
 from .helpers import circle, polyline_as_cubic
 

@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 import torch
 
-from im2vec_cli.checkpoint import REPO_MODELS, from_pretrained
+from im2vec_cli.files import load_image
 from im2vec_cli.infer import vectorize
-from im2vec_cli.io import load_image
-from im2vec_cli.raster._compile import set_compile
+from im2vec_cli.model.pretrained import REPO_MODELS, from_pretrained
+from im2vec_cli.raster import set_compile
 from im2vec_cli.refine import EFFORTS, RefineSettings, refine
-from im2vec_cli.svg import rasterize_svg, to_svg
+from im2vec_cli.vector import rasterize_svg, to_svg
 from tests.helpers import check_svg, make_tiny_model
 
 ASSETS = Path(__file__).parent / "assets" / "fonts_test"
@@ -125,7 +125,7 @@ def test_refined_glyphs_match_the_true_outline():
 
 def test_refine_adam_matches_torch_adam():
     """The optimiser refinement uses (to avoid torch.optim's 2 s import) follows torch's Adam."""
-    from im2vec_cli.refine import _Adam
+    from im2vec_cli.optim import Adam as _Adam
 
     torch.manual_seed(0)
     a1, a2 = torch.randn(5, 3, requires_grad=True), torch.randn(4, requires_grad=True)

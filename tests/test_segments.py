@@ -7,16 +7,16 @@ import numpy as np
 import pytest
 import torch
 
-from im2vec_cli.checkpoint import REPO_MODELS, from_pretrained
 from im2vec_cli.evaluate import outline_iou, svg_mask
-from im2vec_cli.infer import Placement, model_input, to_vector, vectorize
-from im2vec_cli.io import load_image
+from im2vec_cli.files import load_image
+from im2vec_cli.frame import Placement
+from im2vec_cli.infer import model_input, to_vector, vectorize
+from im2vec_cli.model.pretrained import REPO_MODELS, from_pretrained
 from im2vec_cli.model.segments import K_MIN, SegmentPredictor, choose_segments, curve, fit_loss
 from im2vec_cli.raster import render_paths
 from im2vec_cli.raster.bezier import line_controls
-from im2vec_cli.segment_fit import AuxSettings, train_segment_predictor
-from im2vec_cli.simplify import simplify, simplify_contour
-from im2vec_cli.svg import VectorImage, VectorShape, to_svg
+from im2vec_cli.train_aux import AuxSettings, train_segment_predictor
+from im2vec_cli.vector import VectorImage, VectorShape, simplify, simplify_contour, to_svg
 from tests.helpers import TINY, check_svg, circle, make_tiny_model, png, run, synthetic_shapes
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from im2vec_cli.checkpoint import REPO_MODELS, from_pretrained
 from im2vec_cli.evaluate import reconstruction_l2
+from im2vec_cli.model.pretrained import REPO_MODELS, from_pretrained
 
 MODELS = sorted(str(p.parent.relative_to(REPO_MODELS)) for p in REPO_MODELS.glob("**/config.json"))
 ASSETS = Path(__file__).parent / "assets" / "fonts_test"

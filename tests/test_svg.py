@@ -5,7 +5,7 @@ import pytest
 import torch
 
 from im2vec_cli.errors import InputError
-from im2vec_cli.svg import from_svg, from_tensors, parse_d, rasterize_svg, to_svg, to_tensors
+from im2vec_cli.vector import from_svg, from_tensors, parse_d, rasterize_svg, to_svg, to_tensors
 
 
 def random_image(seed=0):

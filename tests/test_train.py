@@ -92,8 +92,8 @@ def test_resume_is_exact(tmp_path, shapes):
 def test_ema_resumes_exactly_and_is_exported(tmp_path, shapes):
     """``ema``: the averaged weights resume exactly, are what the run and ``export`` write,
     and differ from the raw weights; validation logs both."""
-    from im2vec_cli.checkpoint import export_checkpoint, from_pretrained
     from im2vec_cli.errors import Im2VecError
+    from im2vec_cli.model.pretrained import export_checkpoint, from_pretrained
 
     cfg = fast_cfg(steps=6, ckpt_every=3, ema=0.9, val_every=6)
     straight = tmp_path / "a"
@@ -167,8 +167,8 @@ def test_cli_train_skips_unreadable_files(tmp_path, shapes):
 def test_cli_train_init_fine_tunes_from_a_model(tmp_path, shapes):
     from click.testing import CliRunner
 
-    from im2vec_cli.checkpoint import from_pretrained
     from im2vec_cli.cli import cli
+    from im2vec_cli.model.pretrained import from_pretrained
 
     d = _png_folder(tmp_path / "data", shapes[:12])
     cfg = tmp_path / "cfg.json"

@@ -1,3 +1,25 @@
-"""im2vec: raster images to closed cubic Bezier vector graphics with a learned model."""
+"""im2vec: raster images to closed cubic Bezier vector graphics with a learned model.
+
+The Python API (``api.py``) is loaded on first use, so that ``im2vec --help`` does not
+import torch::
+
+    import im2vec_cli as iv
+    svg = iv.vectorize("glyph.png", iv.load_model("fonts")).to_svg()
+"""
 
 __version__ = "0.1.0"
+
+_API = ("load_model", "vectorize", "encode", "decode", "sample", "interpolate")
+__all__ = ["__version__", "VectorImage", "VectorShape", *_API]
+
+
+def __getattr__(name: str):
+    if name in _API:
+        from . import api
+
+        return getattr(api, name)
+    if name in ("VectorImage", "VectorShape"):
+        from . import vector
+
+        return getattr(vector, name)
+    raise AttributeError(f"module 'im2vec_cli' has no attribute {name!r}")

@@ -1,114 +1,18 @@
-"""Exported models (``save_pretrained`` / ``from_pretrained``) and training checkpoints.
+"""Training checkpoints: ``checkpoint.pt`` in the run directory (model, optimiser, step and
+RNG states), written atomically (``torch.save`` to memory, then a rename).
 
-An exported model is a folder: ``config.json`` (ModelConfig, sorted, with class name and
-format version) beside ``model.safetensors``. A training checkpoint is ``checkpoint.pt`` in
-the run directory: model, optimiser, step and RNG states, written atomically.
+Exported model folders (``save_pretrained`` / ``from_pretrained``) live in ``model/pretrained.py``.
 """
 
 from __future__ import annotations
 
 import io
-import os
 from pathlib import Path
 
 import torch
 
-from .config import ModelConfig
 from .errors import ModelError
-from .io import atomic_write
-
-REPO_MODELS = Path(__file__).resolve().parents[2] / "models"
-PACKAGE_MODELS = Path(__file__).resolve().parent / "models"
-DEFAULT_MODEL = "fonts"
-
-
-def _unwrap(model: torch.nn.Module) -> torch.nn.Module:
-    """The plain module under DDP and ``torch.compile`` wrappers (keys without prefixes)."""
-    while True:
-        if hasattr(model, "_orig_mod"):
-            model = model._orig_mod
-        elif isinstance(model, torch.nn.parallel.DistributedDataParallel):
-            model = model.module
-        else:
-            return model
-
-
-def save_pretrained(model: torch.nn.Module, directory: str | Path, *, half: bool = False) -> Path:
-    """Write ``config.json`` and ``model.safetensors`` (fp16 storage with ``half``)."""
-    from safetensors.torch import save
-
-    model = _unwrap(model)
-    directory = Path(directory)
-    directory.mkdir(parents=True, exist_ok=True)
-    state = {k: (v.half() if half and v.is_floating_point() else v).detach().cpu().contiguous()
-             for k, v in model.state_dict().items()}
-    atomic_write(directory / "model.safetensors", save(state, metadata={"format": "pt"}))
-    atomic_write(directory / "config.json", model.config.to_json())
-    return directory
-
-
-def resolve_model(name_or_dir: str | os.PathLike) -> Path:
-    """A model folder: an explicit directory, then ``$IM2VEC_MODELS/NAME``, then the
-    repository's ``models/NAME``, then the package's bundled ``models/NAME``."""
-    p = Path(name_or_dir)
-    if p.is_dir():
-        return p
-    name = str(name_or_dir)
-    candidates = []
-    if os.environ.get("IM2VEC_MODELS"):
-        candidates.append(Path(os.environ["IM2VEC_MODELS"]) / name)
-    candidates += [REPO_MODELS / name, PACKAGE_MODELS / name]
-    for c in candidates:
-        if (c / "config.json").is_file():
-            return c
-    known = sorted({d.name for base in (REPO_MODELS, PACKAGE_MODELS) if base.is_dir() for d in base.iterdir()
-                    if (d / "config.json").is_file()})
-    raise ModelError(f"unknown model {name!r} (not a directory; shipped models: {', '.join(known) or 'none'})")
-
-
-def from_pretrained(name_or_dir: str | os.PathLike = DEFAULT_MODEL, device: str | torch.device = "cpu"):
-    """Rebuild the model (``Im2Vec``, or the ``ImageVAE`` baseline) from its folder and load
-    the weights with strict keys."""
-    from safetensors import SafetensorError
-    from safetensors.torch import load_file
-
-    from .model.imagevae import build_model
-
-    folder = resolve_model(name_or_dir)
-    cfg = ModelConfig.load(folder / "config.json")
-    weights = folder / "model.safetensors"
-    if not weights.is_file():
-        raise ModelError(f"{folder}: model.safetensors is missing")
-    try:
-        state = load_file(str(weights))
-    except (SafetensorError, OSError, ValueError) as exc:
-        raise ModelError(f"{weights}: unreadable weights ({exc})") from None
-    try:
-        model = build_model(cfg)
-    except ValueError as exc:
-        raise ModelError(f"{folder}: bad config ({exc})") from None
-    ref = model.state_dict()
-    state = {k: v.float() if v.is_floating_point() else v for k, v in state.items()}  # fp16 storage -> fp32
-    for k, v in state.items():
-        if k in ref and v.shape != ref[k].shape:
-            raise ModelError(f"{weights}: {k} has shape {tuple(v.shape)}, config expects {tuple(ref[k].shape)}")
-        if v.is_floating_point() and not torch.isfinite(v).all():
-            raise ModelError(f"{weights}: {k} contains NaN or infinite values")
-    try:
-        model.load_state_dict(state, strict=True)
-    except RuntimeError as exc:
-        first = str(exc).splitlines()[1].strip() if len(str(exc).splitlines()) > 1 else str(exc)
-        raise ModelError(f"{weights}: weights do not match the config ({first})") from None
-    model.name = folder.name
-    return model.to(device).eval()
-
-
-def stored_half(name_or_dir: str | os.PathLike) -> bool:
-    """Whether an exported model's floating-point weights are stored as fp16."""
-    from safetensors import safe_open
-
-    with safe_open(str(resolve_model(name_or_dir) / "model.safetensors"), framework="pt") as f:
-        return any(f.get_slice(k).get_dtype() == "F16" for k in f.keys())
+from .files import atomic_write
 
 
 def save_checkpoint(path: str | Path, state: dict) -> None:
@@ -119,29 +23,10 @@ def save_checkpoint(path: str | Path, state: dict) -> None:
 
 
 def load_checkpoint(path: str | Path) -> dict:
+    """Read a training checkpoint; a missing or unreadable one is a one-line ``ModelError``."""
     try:
         return torch.load(path, map_location="cpu", weights_only=False)
     except FileNotFoundError:
         raise ModelError(f"{path}: no checkpoint to resume from") from None
     except Exception as exc:
         raise ModelError(f"{path}: unreadable checkpoint ({type(exc).__name__})") from None
-
-
-def export_checkpoint(run_dir: str | Path, out_dir: str | Path, *, half: bool = False) -> tuple[Path, int]:
-    """Export the model of a run's ``checkpoint.pt`` as a ``from_pretrained`` folder.
-
-    Returns the folder and the step the checkpoint was taken at.
-    """
-    from .model.imagevae import build_model
-
-    state = load_checkpoint(Path(run_dir) / "checkpoint.pt")
-    model = build_model(ModelConfig.from_dict(state["model_config"]))
-    if state.get("ema") is not None:  # a run with TrainConfig.ema exports the averaged weights
-        from torch.optim.swa_utils import AveragedModel
-
-        averaged = AveragedModel(model, use_buffers=True)
-        averaged.load_state_dict(state["ema"], strict=True)
-        model = averaged.module
-    else:
-        model.load_state_dict(state["model"], strict=True)
-    return save_pretrained(model, out_dir, half=half), int(state["step"])

@@ -14,6 +14,7 @@ from typing import Any, get_type_hints
 from .errors import Im2VecError
 
 FORMAT_VERSION = 1
+PYRAMID_MODES = ("blur", "render")  # TrainConfig.pyramid: the coarse levels of the loss (raster.render_pyramid)
 
 
 class _Config:
@@ -117,3 +118,12 @@ class TrainConfig(_Config):
     preview_every: int = 500
     workers: int = 2
     log_every: int = 25
+
+    def __post_init__(self):
+        """Values a run cannot use are refused here, before any data loads."""
+        if self.supersample < 1:
+            raise Im2VecError(f"TrainConfig.supersample must be >= 1, got {self.supersample}")
+        if self.pyramid not in PYRAMID_MODES:
+            raise Im2VecError(f"TrainConfig.pyramid must be one of {PYRAMID_MODES}, got {self.pyramid!r}")
+        if not 0.0 <= self.ema < 1.0:
+            raise Im2VecError(f"TrainConfig.ema must be in [0, 1), got {self.ema}")

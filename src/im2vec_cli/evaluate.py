@@ -21,18 +21,20 @@ the sample deformation on, or switched off at inference (``segments_sweep``)."""
 
 from __future__ import annotations
 
+import io
 from contextlib import contextmanager, nullcontext
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from .data.folder import list_images
+from .data.folder import list_images, split_dir
 from .errors import DataError, Im2VecError, InputError
+from .files import load_image
 from .infer import decode, encode, lerp_latents, reconstruct_raster, vectorize
-from .io import load_image
 from .model.vae import Im2Vec
-from .svg import VectorImage, from_svg, rasterize_svg, to_svg
+from .raster import cubic_at, segment_controls
+from .vector import VectorImage, from_svg, rasterize_svg, to_svg
 
 
 def reconstruction_l2(
@@ -73,17 +75,18 @@ def reconstruction_l2(
                 chamfers.append(chamfer_px(vec, ref))
     if not errs:
         raise DataError("no readable test images")
-    out = {**_mean("recon_l2", errs), "images": len(errs)}
+    out = {**mean_stderr("recon_l2", errs), "images": len(errs)}
     if paths:
         out.update(paths=float(np.mean(paths)), segments=float(np.mean(segs)))
     if ious:
-        out.update(_mean("outline_iou", ious), **_mean("chamfer_px", chamfers), outlines=len(ious))
+        out.update(mean_stderr("outline_iou", ious), **mean_stderr("chamfer_px", chamfers), outlines=len(ious))
     if unread:
         out["outlines_unread"] = unread
     return out
 
 
-def _mean(key: str, values: list[float]) -> dict[str, float]:
+def mean_stderr(key: str, values: list[float]) -> dict[str, float]:
+    """``{key: mean, key_stderr: standard error of the mean}`` of ``values`` (stderr 0 for one value)."""
     e = np.asarray(values, dtype=np.float64)
     return {key: float(e.mean()), key + "_stderr": float(e.std(ddof=1) / np.sqrt(len(e))) if len(e) > 1 else 0.0}
 
@@ -93,12 +96,9 @@ def outline_points(image: VectorImage, spacing: float = 0.25) -> np.ndarray:
     pts = []
     for shape in image.shapes:
         for c in shape.contours:
-            segs = c[(np.arange(len(c) // 3)[:, None] * 3 + np.arange(4)[None]) % len(c)]  # (S, 4, 2)
-            for ctrl in segs:
+            for ctrl in segment_controls(torch.from_numpy(np.asarray(c, dtype=np.float64))).numpy():  # (S, 4, 2)
                 n = max(2, int(np.ceil(np.abs(np.diff(ctrl, axis=0)).sum() / spacing)))
-                t = np.linspace(0, 1, n, endpoint=False)[:, None]
-                u = 1 - t
-                pts.append(u**3 * ctrl[0] + 3 * u * u * t * ctrl[1] + 3 * u * t * t * ctrl[2] + t**3 * ctrl[3])
+                pts.append(cubic_at(ctrl, np.linspace(0, 1, n, endpoint=False)))
     return np.concatenate(pts) if pts else np.zeros((0, 2))
 
 
@@ -132,10 +132,7 @@ def outline_iou(a: np.ndarray, b: np.ndarray) -> float:
 
 def eval_files(folder: str | Path, limit: int | None = None, seed: int = 0) -> list[Path]:
     """Images under ``folder`` (``folder/test`` when present), a seeded subset of ``limit``."""
-    folder = Path(folder)
-    if (folder / "test").is_dir():
-        folder = folder / "test"
-    files = list_images(folder)
+    files = list_images(split_dir(folder, "test"))
     if limit is not None and len(files) > limit:
         g = torch.Generator().manual_seed(seed)
         files = [files[i] for i in sorted(torch.randperm(len(files), generator=g)[:limit].tolist())]
@@ -215,9 +212,8 @@ def generation_l2(model: Im2Vec, train: torch.Tensor, *, samples: int = 1000, se
     to its nearest training image. ``train``: ``(N, 3, S, S)`` uint8 at the model size."""
     g = torch.Generator().manual_seed(seed)
     z = torch.randn(samples, model.config.latent, generator=g)
-    e = nearest_mse(decoded_images(model, z, segments), train).numpy()
-    return {"generation_l2": float(e.mean()), "generation_l2_stderr": float(e.std(ddof=1) / np.sqrt(len(e))),
-            "generated": len(e)}
+    e = nearest_mse(decoded_images(model, z, segments), train).tolist()
+    return {**mean_stderr("generation_l2", e), "generated": len(e)}
 
 
 def interpolation_l2(model: Im2Vec, train: torch.Tensor, *, pairs: int = 250, steps: int = 4, seed: int = 0,
@@ -229,17 +225,14 @@ def interpolation_l2(model: Im2Vec, train: torch.Tensor, *, pairs: int = 250, st
     imgs = [train[i].float() / 255 for i in idx.flatten().tolist()]
     z = encode(model, imgs).view(pairs, 2, -1)  # (pairs, 2, D)
     zs = torch.cat([lerp_latents(a, b, steps)[1:-1] for a, b in z])  # (pairs * steps, D)
-    e = nearest_mse(decoded_images(model, zs, segments), train).numpy()
-    return {"interpolation_l2": float(e.mean()), "interpolation_l2_stderr": float(e.std(ddof=1) / np.sqrt(len(e))),
-            "interpolants": len(e)}
+    e = nearest_mse(decoded_images(model, zs, segments), train).tolist()
+    return {**mean_stderr("interpolation_l2", e), "interpolants": len(e)}
 
 
 def sweep_plot(series: dict[str, list[dict]], title: str = "") -> bytes:
     """PNG line plot of reconstruction L2 against k, one line per ``segments_sweep`` result
     (needs matplotlib: ``pip install 'im2vec[results]'``). No error bars: lines over the same
     images are paired, and their per-image spread says nothing about their difference."""
-    import io
-
     try:
         from matplotlib.figure import Figure  # no pyplot: no global backend or figure state
     except ImportError:
@@ -256,6 +249,6 @@ def sweep_plot(series: dict[str, list[dict]], title: str = "") -> bytes:
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    buf = io.BytesIO()
+    buf = io.BytesIO()  # matplotlib writes the PNG itself (no Pillow image to hand to files.encode_png)
     fig.savefig(buf, format="png")
     return buf.getvalue()

@@ -1,55 +1,25 @@
 """Inference: vectorize, encode, decode, sample and interpolate with a trained model.
 
-Frames: the model sees a ``S x S`` square (``S = config.image_size``) made from the input by
-centring it on a white square of side ``max(H, W)`` (at least ``S`` when ``config.fit`` is
-"pad") and resizing. ``Placement`` maps the model's normalised frame back to the *input's*
-pixel frame, so an SVG overlays its input.
+Frames: the model sees its square frame (``frame.py``); ``to_vector`` maps decoded paths to
+the *input's* pixel frame with the image's ``Placement``, so an SVG overlays its input.
 """
 
 from __future__ import annotations
 
-import io
-import math
-from dataclasses import dataclass
-
 import numpy as np
 import torch
 
-from .data.folder import fit_square, resize_square, square_side
+from .frame import Placement, resize_square, to_model_frame
 from .model.vae import Decoded, Im2Vec
-from .overlaps import resolve_overlaps
-from .raster.bezier import line_controls
-from .svg import VectorImage, VectorShape, contour_d, from_tensors, rasterize_svg, to_svg
+from .raster import line_controls
+from .vector import VectorImage, VectorShape, from_tensors, resolve_overlaps
 
 MIN_AREA = 1e-4  # paths below this area (normalised units) are unused and not exported
 
 
-@dataclass(frozen=True)
-class Placement:
-    """Input ``width x height``; the model square of side ``square_side(H, W, size, fit)``
-    sits at ``(-left, -top)`` in the input's pixel frame (``size`` 0: side ``max(H, W)``)."""
-
-    width: int
-    height: int
-    size: int = 0
-    fit: str = "resize"
-
-    @property
-    def side(self) -> int:
-        return square_side(self.height, self.width, self.size, self.fit)
-
-    @property
-    def offset(self) -> tuple[float, float]:
-        return (self.side - self.width) // 2, (self.side - self.height) // 2
-
-
 def model_input(model: Im2Vec, image: torch.Tensor) -> tuple[torch.Tensor, Placement]:
     """``(3, H, W)`` in [0, 1] -> model input ``(3, S, S)`` and its placement."""
-    if image.dim() != 3 or image.shape[0] != 3:
-        raise ValueError(f"image must be (3, H, W), got {tuple(image.shape)}")
-    _, h, w = image.shape
-    cfg = model.config
-    return fit_square(image, cfg.image_size, cfg.fit), Placement(w, h, cfg.image_size, cfg.fit)
+    return to_model_frame(image, model.config.image_size, model.config.fit)
 
 
 def to_vector(dec: Decoded, i: int, place: Placement, *, max_paths: int | None = None, keep_all: bool = False) -> VectorImage:
@@ -59,9 +29,6 @@ def to_vector(dec: Decoded, i: int, place: Placement, *, max_paths: int | None =
     """
     pts = dec.points[i].detach().double().cpu()  # (P, 3k, 2) normalised (model square)
     counts = None if dec.counts is None else dec.counts[i].tolist()  # (P,) segments before padding
-    side = place.side
-    left, top = place.offset
-    px = pts * side - torch.tensor([left, top], dtype=torch.float64)  # input pixel frame
     area = Im2Vec.path_areas(pts)  # (P,)
     keep = torch.ones(len(pts), dtype=torch.bool) if keep_all else area >= MIN_AREA
     if max_paths is not None and int(keep.sum()) > max_paths:
@@ -69,7 +36,7 @@ def to_vector(dec: Decoded, i: int, place: Placement, *, max_paths: int | None =
         keep = torch.zeros_like(keep)
         keep[order[:max_paths]] = True
     sidx = None if dec.shape_index is None else dec.shape_index.cpu()[keep]
-    norm = px / torch.tensor([place.width, place.height], dtype=torch.float64)
+    norm = place.model_to_input(pts)  # (P, 3k, 2) input-normalised
     if counts is None:
         norm = norm[keep]
     else:  # ragged: trim the padding of each path
@@ -93,9 +60,14 @@ def uniform_color(image: torch.Tensor) -> tuple[float, float, float] | None:
     return None
 
 
-def flat_vector(place: Placement, color: tuple[float, float, float]) -> VectorImage:
-    """A flat image as vectors: nothing on white, else one canvas-sized square in ``color``."""
-    w, h = place.width, place.height
+def flat_result(image: torch.Tensor) -> VectorImage | None:
+    """The vector image of a flat ``(3, H, W)`` image (one colour: nothing to fit), else ``None``."""
+    color = uniform_color(image)
+    return None if color is None else flat_vector(image.shape[2], image.shape[1], color)
+
+
+def flat_vector(w: int, h: int, color: tuple[float, float, float]) -> VectorImage:
+    """A flat ``w x h`` image as vectors: nothing on white, else one canvas-sized square in ``color``."""
     if min(color) >= 1 - UNIFORM_TOL:
         return VectorImage(float(w), float(h), [])
     corners = np.array([[0, 0], [w, 0], [w, h], [0, h]], dtype=np.float64)
@@ -131,14 +103,8 @@ def vectorize(model: Im2Vec, images: list[torch.Tensor], *, segments: int | str 
     other colour one canvas-sized square.
     """
     dev = next(model.parameters()).device
-    out: list[VectorImage | None] = [None] * len(images)
-    todo = []
-    for i, im in enumerate(images):
-        col = uniform_color(im)
-        if col is None:
-            todo.append(i)
-        else:
-            out[i] = flat_vector(Placement(im.shape[2], im.shape[1]), col)
+    out = [flat_result(im) for im in images]
+    todo = [i for i, v in enumerate(out) if v is None]
     if todo:
         xs, places = zip(*(model_input(model, images[i]) for i in todo))
         mu, _ = model.encode(torch.stack(xs).to(dev))
@@ -188,46 +154,3 @@ def lerp_latents(za: torch.Tensor, zb: torch.Tensor, steps: int) -> torch.Tensor
     """Endpoints and ``steps`` evenly spaced latents between them: ``(steps + 2, D)``."""
     t = torch.linspace(0, 1, steps + 2, dtype=za.dtype).view(-1, 1)
     return za.view(1, -1) * (1 - t) + zb.view(1, -1) * t
-
-
-def animated_svg(frames: list[VectorImage], seconds: float = 3.0, decimals: int = 2) -> str:
-    """One SVG whose paths morph through ``frames`` with SMIL ``<animate>`` (there and back).
-
-    All frames must have the same shapes, contours and segment counts (decode with
-    ``keep_all=True`` and a fixed number of segments), so the path data interpolates.
-    """
-    first = frames[0]
-    sig = [[len(c) for c in s.contours] for s in first.shapes]
-    for f in frames:
-        if [[len(c) for c in s.contours] for s in f.shapes] != sig:
-            raise ValueError("frames differ in structure; decode them with keep_all=True and fixed segments")
-    seq = frames + frames[-2:0:-1]  # ping-pong
-    base = to_svg(first, decimals)
-    out = base[: base.rfind("</svg>")]
-    out = out[: out.find("<path")] if "<path" in out else out
-    parts = [out]
-    for si, shape in enumerate(first.shapes):
-        values = ";".join(" ".join(contour_d(c, decimals) for c in f.shapes[si].contours) for f in seq + [seq[0]])
-        r, g, b = (int(round(v * 255)) for v in shape.color)
-        parts.append(
-            f'<path d="{values.split(";")[0]}" fill="#{r:02x}{g:02x}{b:02x}" fill-rule="{shape.fill_rule}" stroke="none">'
-            f'<animate attributeName="d" dur="{seconds * 2:g}s" repeatCount="indefinite" values="{values}"/></path>'
-        )
-    parts.append("</svg>")
-    return "".join(parts)
-
-
-def contact_sheet(images: list[VectorImage], cell: int = 96, columns: int = 8) -> bytes:
-    """PNG grid of cairosvg renders of the vector images."""
-    from PIL import Image
-
-    cols = min(columns, len(images))
-    rows = math.ceil(len(images) / cols)
-    sheet = Image.new("RGB", (cols * cell, rows * cell), "white")
-    for i, im in enumerate(images):
-        arr = rasterize_svg(to_svg(im, 3), cell, cell)
-        tile = Image.fromarray(np.round(arr * 255).astype(np.uint8))
-        sheet.paste(tile, ((i % cols) * cell, (i // cols) * cell))
-    buf = io.BytesIO()
-    sheet.save(buf, format="PNG")
-    return buf.getvalue()

@@ -4,10 +4,12 @@ The amortised encoder gives a first guess; refinement then minimises the pyramid
 (sec. 3.4, eq. 1) against the input itself, first over the latent ``z`` (the shapes stay
 on the model's manifold), then over the control points and colours directly. Paths whose
 removal barely changes the loss are then dropped, neighbouring segments are merged while the
-outline moves less than ``simplify_tol`` pixels (``simplify.py``), and a short points-only
-polish follows. The default uses one pyramid level: see ``RefineSettings.levels``.
+outline moves less than ``simplify_tol`` pixels (``vector/simplify.py``), and a short points-only
+polish follows. The default uses one pyramid level: see ``RefineSettings.levels``. The stages
+are the methods of ``Refinement``; overlapping even-odd paths are resolved once, on the
+latent stage's result (``vector.resolve_overlaps``), and the later stages fit under the rule it chose.
 
-Frames: the model decodes in its square frame (``infer.Placement``). Refinement works in
+Frames: the model decodes in its square frame (``frame.Placement``). Refinement works in
 the *input's* normalised frame, ``(x / W, y / H)`` of the input's pixel grid, and renders at
 the input's resolution (inputs larger than ``max_side`` are fitted at a reduced copy), so
 ``tau`` is measured in input pixels.
@@ -21,13 +23,12 @@ from dataclasses import dataclass
 import torch
 import torch.nn.functional as F
 
-from .infer import Placement, flat_vector, model_input, segment_counts, to_vector, uniform_color
+from .frame import Placement
+from .infer import flat_result, model_input, segment_counts, to_vector
 from .model.vae import Im2Vec
-from .overlaps import resolve_overlaps
-from .raster import gaussian_pyramid, pyramid_l2, render_pyramid
-from .raster.bezier import polygon_area, segment_controls
-from .simplify import simplify
-from .svg import VectorImage, VectorShape
+from .optim import Adam
+from .raster import gaussian_pyramid, polygon_area, pyramid_l2, render_pyramid, segment_controls
+from .vector import VectorImage, VectorShape, resolve_overlaps, simplify
 
 
 @dataclass(frozen=True)
@@ -91,37 +92,6 @@ def _converged(history: list[float], s: RefineSettings) -> bool:
         return False
     before = min(history[: -s.patience])
     return min(history[-s.patience :]) > before * (1 - s.min_improvement)
-
-
-class _Adam:
-    """Adam (Kingma & Ba; torch's defaults) for the few tensors refinement optimises.
-
-    Not ``torch.optim.Adam``: building any torch optimiser imports ``torch._dynamo`` (2 s on
-    a CPU in torch 2.13), which would double the time of a one-image ``vectorize``.
-    """
-
-    def __init__(self, groups: list[dict], betas: tuple[float, float] = (0.9, 0.999), eps: float = 1e-8):
-        self.groups, self.betas, self.eps, self.t = groups, betas, eps, 0
-        self.state = {id(p): (torch.zeros_like(p), torch.zeros_like(p)) for g in groups for p in g["params"]}
-
-    def zero_grad(self) -> None:
-        for g in self.groups:
-            for p in g["params"]:
-                p.grad = None
-
-    @torch.no_grad()
-    def step(self) -> None:
-        self.t += 1
-        b1, b2 = self.betas
-        for g in self.groups:
-            for p in g["params"]:
-                if p.grad is None:
-                    continue
-                m, v = self.state[id(p)]
-                m.lerp_(p.grad, 1 - b1)
-                v.mul_(b2).addcmul_(p.grad, p.grad, value=1 - b2)
-                denom = (v / (1 - b2**self.t)).sqrt_().add_(self.eps)
-                p.addcdiv_(m, denom, value=-g["lr"] / (1 - b1**self.t))
 
 
 @dataclass
@@ -201,7 +171,7 @@ class _Fitter:
         groups = [{"params": [pts], "lr": s.point_lr}]
         if learn_colors:
             groups.append({"params": [cols], "lr": s.color_lr})
-        opt = _Adam(groups)
+        opt = Adam(groups)
         anneal = int(0.6 * steps) if tau_start != s.tau_end else 0
         hist: list[float] = []
         best, best_pts, best_cols = float("inf"), pts.detach().clone(), cols.detach().clone()
@@ -258,6 +228,85 @@ def _without(vec: VectorImage, removed: set[tuple[int, int]]) -> VectorImage:
     return VectorImage(vec.width, vec.height, shapes)
 
 
+class Refinement:
+    """One image's refinement, stage by stage (``refine`` runs them in order).
+
+    Holds the model (frozen while it runs), the fit target at the fit size, and two
+    objectives: ``fitter`` with the model's lines per cubic for the latent and point stages,
+    ``fine`` with ``polish_samples`` that judges results and fits the polish.
+    """
+
+    def __init__(self, model: Im2Vec, image: torch.Tensor, settings: RefineSettings,
+                 on_step: Callable[[dict], None] | None = None):
+        s = self.s = settings
+        self.model, self.image, self.on_step = model, image, on_step
+        self.device = next(model.parameters()).device
+        _, h, w = image.shape
+        target = image[None].to(self.device)
+        if max(h, w) > s.max_side:
+            f = s.max_side / max(h, w)
+            target = F.interpolate(target, size=(max(4, round(h * f)), max(4, round(w * f))), mode="area")
+        self.fitter = _Fitter(target, model.config.samples, s)
+        self.fine = _Fitter(target, max(s.polish_samples, model.config.samples), s)
+
+    def encode(self, segments, quality) -> tuple[torch.Tensor, Placement, int | torch.Tensor | None]:
+        """The amortised guess: ``mu (1, D)``, the placement, and the segments to decode with."""
+        x, place = model_input(self.model, self.image)
+        with torch.no_grad():
+            mu, _ = self.model.encode(x[None].to(self.device))
+            return mu, place, segment_counts(self.model, mu, segments, quality)
+
+    def fit_latent(self, mu: torch.Tensor, k, place: Placement) -> tuple[torch.Tensor, int]:
+        """Stage 1: Adam on the latent (the shapes stay on the model's manifold), at ``tau_start``.
+
+        Returns the best latent (``mu`` itself when no step improves on it) and the steps taken."""
+        s = self.s
+        z = mu.clone().requires_grad_(True)
+        opt = Adam([{"params": [z], "lr": s.latent_lr}])
+        hist: list[float] = []
+        best_z, best = z.detach().clone(), float("inf")
+        for i in range(s.latent_steps):
+            dec = self.model.decode(z, k)
+            loss = self.fitter.loss(place.model_to_input(dec.points), dec.colors, dec.depth, dec.shape_index,
+                                    dec.fill_rule, s.tau_start)
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+            hist.append(loss.item())
+            if hist[-1] < best:
+                best, best_z = hist[-1], z.detach().clone()
+            if self.on_step:
+                self.on_step({"stage": "latent", "step": i, "loss": hist[-1]})
+            if _converged(hist, s):
+                break
+        return best_z, len(hist)
+
+    def decode(self, z: torch.Tensor, k, place: Placement, max_paths: int | None) -> VectorImage:
+        """The paths of ``z`` in the input's frame, overlaps resolved against the input (once)."""
+        with torch.no_grad():
+            return resolve_overlaps(to_vector(self.model.decode(z, k), 0, place, max_paths=max_paths), self.image)
+
+    def fit_points(self, vec: VectorImage) -> tuple[VectorImage, int]:
+        """Stage 2: control points and colours (learned-colour models only), tau annealed."""
+        learn_colors = not self.model.palette.numel()
+        return self.fitter.fit_points(vec, self.s.point_steps, self.s.tau_start, learn_colors, "points", self.on_step)
+
+    def prune(self, vec: VectorImage) -> VectorImage:
+        """Drop paths that do not change the result (``_Fitter.prune``)."""
+        return self.fitter.prune(vec, self.s.prune_tol)
+
+    def simplify_and_polish(self, vec: VectorImage) -> tuple[VectorImage, int]:
+        """Stage 3: merge segments within ``simplify_tol`` px, then a short points-only polish."""
+        if self.s.simplify_tol <= 0:
+            return vec, 0
+        return self.fine.fit_points(simplify(vec, self.s.simplify_tol), self.s.polish_steps, self.s.tau_end, False,
+                                    "polish", self.on_step)
+
+    def loss(self, vec: VectorImage) -> float:
+        """The judge: pyramid L2 at ``tau_end`` with ``polish_samples`` lines per cubic."""
+        return self.fine.vector_loss(vec, self.s.tau_end)
+
+
 def refine(
     model: Im2Vec,
     image: torch.Tensor,
@@ -273,77 +322,35 @@ def refine(
     ``segments`` / ``quality`` as in ``infer.vectorize`` (``"auto"``: per-path counts).
 
     Returns:
-        The vector image (input pixel frame) and a summary: the pyramid L2 before and after
-        (at ``tau_end``), the steps taken in each stage, and the segments before simplifying.
+        The vector image (input pixel frame) and a summary: the pyramid L2 of the model's
+        guess (after the latent stage) and of the result (at ``tau_end``), the steps taken in
+        each stage, and the segments before and after simplifying. The result is never worse
+        than the model's guess: if the point stages end above it, the guess is returned.
     """
-    s = settings
     if image.dim() != 3 or image.shape[0] != 3:
         raise ValueError(f"image must be (3, H, W), got {tuple(image.shape)}")
-    dev = next(model.parameters()).device
-    _, h, w = image.shape
-    flat = uniform_color(image)
+    flat = flat_result(image)
     if flat is not None:  # nothing to fit: the same answer as amortised vectorisation
-        return flat_vector(Placement(w, h), flat), {"loss_start": 0.0, "loss_end": 0.0, "latent_steps": 0,
-                                                    "point_steps": 0}
-    x, place = model_input(model, image)
-    target = image[None].to(dev)
-    if max(h, w) > s.max_side:
-        f = s.max_side / max(h, w)
-        target = F.interpolate(target, size=(max(4, round(h * f)), max(4, round(w * f))), mode="area")
-    fitter = _Fitter(target, model.config.samples, s)
-    fine = _Fitter(target, max(s.polish_samples, model.config.samples), s)  # judges results, fits the polish
-    left, top = place.offset
-    scale = torch.tensor([place.side / w, place.side / h], device=dev)  # model-normalised -> input-normalised
-    shift = torch.tensor([left / w, top / h], device=dev)
-
+        return flat, {"loss_start": 0.0, "loss_end": 0.0, "latent_steps": 0, "point_steps": 0}
+    run = Refinement(model, image, settings, on_step)
     req = [p.requires_grad for p in model.parameters()]
     for p in model.parameters():
         p.requires_grad_(False)
     try:
         with torch.enable_grad():
-            with torch.no_grad():
-                mu, _ = model.encode(x[None].to(dev))
-                k = segment_counts(model, mu, segments, quality)
-            amortised = resolve_overlaps(to_vector(model.decode(mu, k), 0, place, max_paths=max_paths), image)
-            start = fine.vector_loss(amortised, s.tau_end)
-            # stage 1: the latent (the shapes stay on the model's manifold)
-            z = mu.clone().requires_grad_(True)
-            opt = _Adam([{"params": [z], "lr": s.latent_lr}])
-            hist: list[float] = []
-            best_z, best = z.detach().clone(), float("inf")
-            for i in range(s.latent_steps):
-                dec = model.decode(z, k)
-                loss = fitter.loss(dec.points * scale - shift, dec.colors, dec.depth, dec.shape_index, dec.fill_rule,
-                                   s.tau_start)
-                opt.zero_grad()
-                loss.backward()
-                opt.step()
-                hist.append(loss.item())
-                if hist[-1] < best:
-                    best, best_z = hist[-1], z.detach().clone()
-                if on_step:
-                    on_step({"stage": "latent", "step": i, "loss": hist[-1]})
-                if _converged(hist, s):
-                    break
-            latent_steps = len(hist)
-            with torch.no_grad():
-                vec = resolve_overlaps(to_vector(model.decode(best_z, k), 0, place, max_paths=max_paths), image)
-            # stage 2: control points and colours (unused paths are already dropped), under nonzero
-            # where resolve_overlaps chose it
-            learn_colors = not model.palette.numel()
-            vec, point_steps = fitter.fit_points(vec, s.point_steps, s.tau_start, learn_colors, "points", on_step)
-            vec = fitter.prune(vec, s.prune_tol)
+            mu, place, k = run.encode(segments, quality)
+            z, latent_steps = run.fit_latent(mu, k, place)
+            guess = run.decode(z, k, place, max_paths)
+            start = run.loss(guess)
+            vec, point_steps = run.fit_points(guess)
+            vec = run.prune(vec)
             fitted_segments = vec.num_segments
-            polish_steps = 0
-            if s.simplify_tol > 0:  # stage 3: fewer segments, then a short points-only polish
-                vec, polish_steps = fine.fit_points(simplify(vec, s.simplify_tol),
-                                                    s.polish_steps, s.tau_end, False, "polish", on_step)
-            end = fine.vector_loss(vec, s.tau_end)
+            vec, polish_steps = run.simplify_and_polish(vec)
+            end = run.loss(vec)
     finally:
         for p, r in zip(model.parameters(), req):
             p.requires_grad_(r)
-    if end > start:  # refinement never makes the result worse than the amortised guess
-        vec, end = simplify(amortised, s.simplify_tol), start
+    if end > start:  # refinement never makes the result worse than the model's guess
+        vec, end = simplify(guess, settings.simplify_tol), start
     return vec, {"loss_start": start, "loss_end": end, "latent_steps": latent_steps, "point_steps": point_steps,
                  "polish_steps": polish_steps, "segments_fitted": fitted_segments, "segments": vec.num_segments}
-

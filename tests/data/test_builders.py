@@ -12,7 +12,7 @@ from im2vec_cli.data.fonts import build_fonts, split_of
 from im2vec_cli.data.mnist import build_mnist
 from im2vec_cli.data.svgset import build_svg_set
 from im2vec_cli.errors import DataError
-from im2vec_cli.svg import rasterize_svg
+from im2vec_cli.vector import rasterize_svg
 
 DEJAVU_DIR = Path("/usr/share/fonts/truetype/dejavu")
 

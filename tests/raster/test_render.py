@@ -17,7 +17,7 @@ from im2vec_cli.raster import (
     render_supersampled,
 )
 from im2vec_cli.raster.coverage import nearest_edge_search, winding_number
-from im2vec_cli.svg import VectorImage, VectorShape, rasterize_svg, to_svg, to_tensors
+from im2vec_cli.vector import VectorImage, VectorShape, rasterize_svg, to_svg, to_tensors
 from tests.helpers import circle, polyline_as_cubic, star
 
 SIZE = 64

@@ -14,56 +14,18 @@ from pathlib import Path
 import torch
 
 from ..errors import DataError, InputError
-from ..io import load_image
+from ..files import load_image
+from ..frame import fit_square
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
-FITS = ("resize", "pad")  # ModelConfig.fit: how an image smaller than the model square meets it
 
 
 def list_images(root: str | Path) -> list[Path]:
+    """Every PNG/JPG file under ``root`` (searched recursively), sorted."""
     root = Path(root)
     if not root.is_dir():
         raise DataError(f"{root}: not a directory")
     return sorted(p for p in root.rglob("*") if p.suffix.lower() in IMAGE_SUFFIXES and p.is_file())
-
-
-def resize_square(img: torch.Tensor, size: int) -> torch.Tensor:
-    """``(C, S, S)`` -> ``(C, size, size)``: area filter down, bilinear up, unchanged at ``size``."""
-    import torch.nn.functional as F
-
-    s = img.shape[-1]
-    if s == size:
-        return img
-    down = s > size
-    return F.interpolate(img[None], size=(size, size), mode="area" if down else "bilinear",
-                         align_corners=None if down else False)[0]
-
-
-def check_fit(fit: str) -> None:
-    """Raise ``ValueError`` unless ``fit`` is one of ``FITS``."""
-    if fit not in FITS:
-        raise ValueError(f"fit must be one of {FITS}, got {fit!r}")
-
-
-def square_side(height: int, width: int, size: int, fit: str = "resize") -> int:
-    """Side of the white square an image is centred on before it is resized to ``size``:
-    ``max(H, W)``, or with ``fit="pad"`` at least ``size``, so that a smaller image (28 x 28
-    MNIST in a 32 x 32 model) is padded, never resampled."""
-    check_fit(fit)
-    return max(height, width, size if fit == "pad" else 0)
-
-
-def fit_square(img: torch.Tensor, size: int, fit: str = "resize") -> torch.Tensor:
-    """``(3, H, W)`` -> ``(3, size, size)``: centre on a white square of side
-    ``square_side(H, W, size, fit)``, then resize to ``size``."""
-    import torch.nn.functional as F
-
-    _, h, w = img.shape
-    s = square_side(h, w, size, fit)
-    if (h, w) != (s, s):
-        top, left = (s - h) // 2, (s - w) // 2
-        img = F.pad(img, (left, s - w - left, top, s - h - top), value=1.0)
-    return resize_square(img, size).clamp(0, 1)
 
 
 def load_folder(
@@ -104,8 +66,19 @@ def split_indices(names: list[str], val_fraction: float) -> tuple[list[int], lis
     keys = [str(Path(n).parent) for n in names]
     if len(set(keys)) < 10:
         keys = names
-    val = [i for i, k in enumerate(keys) if int(hashlib.sha256(k.encode()).hexdigest()[:8], 16) / 0xFFFFFFFF < val_fraction]
+    val = [i for i, k in enumerate(keys) if hash_unit(k) < val_fraction]
     if not val and len(names) > 1:
         val = [len(names) - 1]
     vs = set(val)
     return [i for i in range(len(names)) if i not in vs], val
+
+
+def hash_unit(key: str) -> float:
+    """A stable pseudo-random number in [0, 1] for ``key`` (SHA-256): the basis of every split."""
+    return int(hashlib.sha256(key.encode()).hexdigest()[:8], 16) / 0xFFFFFFFF
+
+
+def split_dir(root: str | Path, split: str) -> Path:
+    """``root/split`` when that folder exists (a dataset made by ``im2vec data``), else ``root``."""
+    root = Path(root)
+    return root / split if (root / split).is_dir() else root

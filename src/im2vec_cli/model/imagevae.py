@@ -65,16 +65,3 @@ class ImageVAE(nn.Module):
         """Reconstruct a batch (``segments`` is ignored: there are no paths)."""
         mu, logvar = self.encode(images)
         return self.decode(sample_latent(mu, logvar, sample)), mu, logvar
-
-
-def build_model(config: ModelConfig) -> nn.Module:
-    """The model ``config.arch`` names: ``Im2Vec`` or the ``ImageVAE`` baseline."""
-    from ..data.folder import check_fit
-    from .vae import Im2Vec
-
-    check_fit(config.fit)
-    if config.arch == "im2vec":
-        return Im2Vec(config)
-    if config.arch == "imagevae":
-        return ImageVAE(config)
-    raise ValueError(f"arch must be 'im2vec' or 'imagevae', got {config.arch!r}")

@@ -148,8 +148,3 @@ class Im2Vec(nn.Module):
         """Absolute area of each path in normalised units, ``(B, P, 3k, 2) -> (B, P)``;
         unused paths collapse to ~0 and are dropped on export."""
         return polygon_area(flatten_closed(points, samples)).abs()
-
-
-def kl_divergence(mu: torch.Tensor, logvar: torch.Tensor) -> torch.Tensor:
-    """KL(q(z|x) || N(0, I)) summed over latent dims, averaged over the batch."""
-    return (-0.5 * (1 + logvar - mu.square() - logvar.exp()).sum(-1)).mean()

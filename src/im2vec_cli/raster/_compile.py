@@ -8,6 +8,7 @@ pixel kernels are specialised (see ``maybe_compile``).
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import os
 from collections.abc import Callable
@@ -29,6 +30,20 @@ def set_compile(enabled: bool | None) -> None:
     """
     global _override
     _override = enabled
+
+
+@contextlib.contextmanager
+def compiling(enabled: bool):
+    """Within the block, compile (or not) as ``enabled`` says, unless ``IM2VEC_COMPILE`` is set,
+    which always wins; the previous setting is restored after."""
+    global _override
+    saved = _override
+    if "IM2VEC_COMPILE" not in os.environ:
+        _override = enabled
+    try:
+        yield
+    finally:
+        _override = saved
 
 
 def compile_enabled() -> bool:

@@ -18,6 +18,24 @@ def line_controls(a, b):
     return a + (b - a) / 3, a + 2 * (b - a) / 3
 
 
+def cubic_at(ctrl, t):
+    """Points of cubic segments at parameters ``t``: the one cubic evaluation of the project.
+
+    Works on NumPy arrays and tensors alike.
+
+    Args:
+        ctrl: ``(..., 4, 2)`` control points ``[p0, p1, p2, p3]``.
+        t: ``(N,)`` parameters in [0, 1].
+
+    Returns:
+        ``(..., N, 2)``.
+    """
+    t = t[:, None]  # (N, 1)
+    u = 1 - t
+    c = ctrl[..., None, :, :]  # (..., 1, 4, 2)
+    return u**3 * c[..., 0, :] + 3 * u * u * t * c[..., 1, :] + 3 * u * t * t * c[..., 2, :] + t**3 * c[..., 3, :]
+
+
 def bernstein_weights(samples: int, *, dtype: torch.dtype, device: torch.device) -> torch.Tensor:
     """Cubic Bernstein weights at ``t = i / samples`` for ``i = 0 .. samples-1``.
 
@@ -25,8 +43,8 @@ def bernstein_weights(samples: int, *, dtype: torch.dtype, device: torch.device)
         ``(samples, 4)`` weights; the end point ``t = 1`` is the next segment's start.
     """
     t = torch.arange(samples, dtype=dtype, device=device) / samples
-    u = 1 - t
-    return torch.stack([u**3, 3 * u * u * t, 3 * u * t * t, t**3], dim=-1)
+    basis = torch.eye(4, dtype=dtype, device=device)[..., None].expand(4, 4, 2)  # weight k: control k alone
+    return cubic_at(basis, t)[..., 0].T  # (samples, 4)
 
 
 def segment_controls(points: torch.Tensor) -> torch.Tensor:

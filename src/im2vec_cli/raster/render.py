@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
+from ..config import PYRAMID_MODES
 from .bezier import flatten_closed
 from .composite import composite_over, composite_soft
 from .coverage import boundary_edges, nearest_distance, signed_coverage, soft_coverage, winding_number
@@ -167,7 +168,7 @@ def render_supersampled(
     return torch.nn.functional.avg_pool2d(img, factor) if factor > 1 else img
 
 
-PYRAMID_COARSE = ("blur", "render")  # the values of render_pyramid's ``coarse`` (TrainConfig.pyramid)
+PYRAMID_COARSE = PYRAMID_MODES  # the values of render_pyramid's ``coarse`` (TrainConfig.pyramid)
 
 
 def render_pyramid(
@@ -232,29 +233,3 @@ class Rasterizer(nn.Module):
             shape_index=shape_index, samples=s.samples, radius=s.radius, composite=s.composite,
             temperature=s.temperature, background=s.background,
         )
-
-
-def render_svg_image(image, *, scale: float = 1.0, tau: float = 0.15, samples: int = 16) -> torch.Tensor:
-    """Render a ``svg.VectorImage`` (shapes back to front, each with its own fill rule).
-
-    Returns:
-        ``(3, H, W)`` with ``H, W = round(height * scale), round(width * scale)``.
-    """
-    from ..svg import to_tensors
-
-    h, w = max(1, round(image.height * scale)), max(1, round(image.width * scale))
-    if not image.shapes:
-        return torch.ones(3, h, w)
-    pts, cols, sidx = to_tensors(image)
-    pts, cols = pts.float(), cols.float()
-    layers = []
-    for g, shape in enumerate(image.shapes):
-        sel = sidx == g
-        cov = render_coverage(
-            pts[sel][None], size=(h, w), tau=tau, fill_rule=shape.fill_rule,
-            shape_index=torch.zeros(int(sel.sum()), dtype=torch.long), samples=samples,
-        )
-        layers.append(cov)
-    cov = torch.cat(layers, 1)  # (1, G, H, W)
-    depth = torch.arange(cov.shape[1], dtype=cov.dtype)[None]
-    return composite_over(cov, cols[None], depth)[0]

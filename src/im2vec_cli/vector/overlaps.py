@@ -12,7 +12,7 @@ in L2 replaces the even-odd shape when it is nearer than the even-odd original. 
 and refinement use it; ``sample`` and ``interpolate`` have no image to read it from and
 write the model's even-odd shapes as they are.
 
-Frame: ``VectorImage`` pixel frame (``svg.py``); the image is the input ``(3, H, W)`` in
+Frame: ``VectorImage`` pixel frame (``image.py``); the image is the input ``(3, H, W)`` in
 [0, 1] on the same canvas. Contours keep the wrap-around cubic layout when reversed.
 """
 
@@ -24,10 +24,8 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from .raster.bezier import flatten_closed
-from .raster.composite import composite_over
-from .raster.coverage import inside_from_winding, winding_number
-from .svg import VectorImage, VectorShape
+from ..raster import composite_over, flatten_closed, inside_from_winding, winding_number
+from .image import VectorImage, VectorShape
 
 
 def reverse_contour(points: np.ndarray) -> np.ndarray:

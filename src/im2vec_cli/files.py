@@ -1,6 +1,7 @@
-"""File input and output shared by the CLI and the library: atomic writes, image loading.
+"""File input and output shared by the CLI and the library: atomic writes, image loading,
+PNG encoding.
 
-Images are returned as ``(C, H, W)`` float tensors in [0, 1] on a white background.
+Images are returned as ``(3, H, W)`` float tensors in [0, 1] on a white background.
 """
 
 from __future__ import annotations
@@ -143,13 +144,57 @@ def load_image(path: str | os.PathLike, data: bytes | None = None) -> torch.Tens
         raise InputError(f"{name}: unsupported image mode {img.mode} ({_one_line(exc)})") from None
 
 
+def encode_png(img: Image.Image) -> bytes:
+    """A Pillow image -> PNG bytes."""
+    buf = io.BytesIO()
+    img.save(buf, format="PNG")
+    return buf.getvalue()
+
+
 def tensor_to_png(img: torch.Tensor) -> bytes:
     """``(3, H, W)`` or ``(1, H, W)`` in [0, 1] -> PNG bytes."""
     arr = (img.detach().float().clamp(0, 1) * 255).round().to(torch.uint8).cpu()
     if arr.shape[0] == 1:
-        pil = Image.fromarray(arr[0].numpy(), "L")
+        return encode_png(Image.fromarray(arr[0].numpy(), "L"))
+    return encode_png(Image.fromarray(arr.permute(1, 2, 0).numpy(), "RGB"))
+
+
+def as_image(image) -> torch.Tensor:
+    """A picture in any of the forms the Python API takes -> ``(3, H, W)`` float in [0, 1] over white.
+
+    Args:
+        image: a Pillow image; a NumPy array ``(H, W)``, ``(H, W, 3)`` or ``(H, W, 4)`` (uint8 in
+            [0, 255], or float in [0, 1]); a tensor ``(3, H, W)`` in [0, 1]; or a file path.
+    """
+    if isinstance(image, (str, os.PathLike)):
+        return load_image(image)
+    if isinstance(image, Image.Image):
+        out = image_to_tensor(image)
+    elif isinstance(image, torch.Tensor):
+        if image.dim() != 3 or image.shape[0] != 3:
+            raise ValueError(f"image tensor must be (3, H, W), got {tuple(image.shape)}")
+        out = image.detach().float().cpu().clamp(0, 1)
     else:
-        pil = Image.fromarray(arr.permute(1, 2, 0).numpy(), "RGB")
-    buf = io.BytesIO()
-    pil.save(buf, format="PNG")
-    return buf.getvalue()
+        out = _array_to_tensor(image)
+    if min(out.shape[1:]) < MIN_SIDE:
+        raise InputError(f"image too small ({out.shape[2]}x{out.shape[1]} pixels; at least {MIN_SIDE} per side)")
+    return out
+
+
+def _array_to_tensor(image) -> torch.Tensor:
+    """A NumPy-like ``(H, W)``, ``(H, W, 3)`` or ``(H, W, 4)`` array -> ``(3, H, W)`` in [0, 1]."""
+    arr = np.asarray(image)
+    if arr.ndim not in (2, 3) or (arr.ndim == 3 and arr.shape[2] not in (3, 4)):
+        raise ValueError(f"image array must be (H, W), (H, W, 3) or (H, W, 4), got {arr.shape}")
+    if arr.dtype == np.uint8:
+        arr = arr.astype(np.float32) / 255
+    elif np.issubdtype(arr.dtype, np.floating):
+        arr = np.nan_to_num(arr.astype(np.float32), nan=1.0, posinf=1.0, neginf=0.0).clip(0, 1)
+    else:
+        raise ValueError(f"image array must be uint8 or float, got {arr.dtype}")
+    t = torch.from_numpy(np.ascontiguousarray(arr))
+    if t.dim() == 2:
+        t = t[..., None].expand(-1, -1, 3)
+    if t.shape[2] == 4:
+        t = t[..., :3] * t[..., 3:] + (1 - t[..., 3:])  # alpha over white
+    return t.permute(2, 0, 1).contiguous()  # (3, H, W)

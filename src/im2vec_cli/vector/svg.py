@@ -1,51 +1,22 @@
-"""Vector images <-> SVG text, and rasterisation of any SVG with cairosvg (no autograd).
+"""SVG text <-> ``VectorImage``: the writer (static and animated) and a reader of closed
+cubic paths.
 
-Frame: a ``VectorImage`` stores contours in *pixel* coordinates of its ``width x height``
-canvas, which is also the SVG ``viewBox``. Tensors use the normalised frame of
-shared/STYLE.md; ``from_tensors`` / ``to_tensors`` convert.
+Frame: the ``VectorImage`` pixel frame is the SVG ``viewBox``.
 """
 
 from __future__ import annotations
 
-import io
 import math
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from xml.etree import ElementTree
 
 import numpy as np
 import svgwrite
-import torch
 
-from .errors import InputError
-from .raster.bezier import flatten_closed, line_controls, polygon_area, subdivide_to
-
-
-@dataclass
-class VectorShape:
-    """One filled shape: closed contours ``(3S_i, 2)`` (pixel frame), one colour, a fill rule."""
-
-    contours: list[np.ndarray]
-    color: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    fill_rule: str = "nonzero"
-
-
-@dataclass
-class VectorImage:
-    """Shapes listed back to front on a ``width x height`` canvas."""
-
-    width: float
-    height: float
-    shapes: list[VectorShape] = field(default_factory=list)
-
-    @property
-    def num_segments(self) -> int:
-        return sum(len(c) // 3 for s in self.shapes for c in s.contours)
-
-    @property
-    def num_paths(self) -> int:
-        return sum(len(s.contours) for s in self.shapes)
+from ..errors import InputError
+from ..raster.bezier import line_controls
+from .image import VectorImage, VectorShape
 
 
 def _fmt(v: float, decimals: int) -> str:
@@ -212,77 +183,28 @@ def from_svg(text: str | bytes) -> VectorImage:
     return VectorImage(w, h, shapes)
 
 
-def from_tensors(
-    points: torch.Tensor | Sequence[torch.Tensor],
-    colors: torch.Tensor,
-    *,
-    size: tuple[float, float],
-    shape_index: Sequence[int] | torch.Tensor | None = None,
-    depth: torch.Tensor | None = None,
-    fill_rule: str = "nonzero",
-    min_area: float = 0.0,
-) -> VectorImage:
-    """One image's tensors -> ``VectorImage`` in a ``(height, width)`` pixel frame.
+def animated_svg(frames: list[VectorImage], seconds: float = 3.0, decimals: int = 2) -> str:
+    """One SVG whose paths morph through ``frames`` with SMIL ``<animate>`` (there and back).
 
-    Args:
-        points: ``(P, 3S, 2)`` normalised frame, or a list of ``(3S_i, 2)`` (paths of different lengths).
-        colors: ``(G, 3)``.
-        size: ``(height, width)`` of the output canvas (the viewBox).
-        shape_index: ``(P,)`` path -> shape; ``None``: each path its own shape.
-        depth: ``(G,)``, larger in front; shapes are written back to front.
-        min_area: contours whose flattened area is below this (pixels^2) are dropped.
+    All frames must have the same shapes, contours and segment counts (decode with
+    ``keep_all=True`` and a fixed number of segments), so the path data interpolates.
     """
-    h, w = size
-    scale = torch.tensor([w, h], dtype=torch.float64)
-    pts = [c.detach().double().cpu() * scale for c in points]  # P x (3S_i, 2) px
-    p = len(pts)
-    sidx = list(range(p)) if shape_index is None else [int(v) for v in torch.as_tensor(shape_index).tolist()]
-    g = colors.shape[0]
-    order = list(range(g)) if depth is None else torch.argsort(depth.detach().cpu()).tolist()
-    if len({len(c) for c in pts}) == 1:  # one batched call when all paths have the same length
-        areas = polygon_area(flatten_closed(torch.stack(pts), 8)).abs().tolist()
-    else:
-        areas = [float(polygon_area(flatten_closed(c[None], 8)).abs()) for c in pts]
-    shapes = []
-    for gi in order:
-        cs = [pts[i].numpy() for i in range(p) if sidx[i] == gi and areas[i] >= min_area]
-        if cs:
-            shapes.append(VectorShape(cs, tuple(float(c) for c in colors[gi].tolist()), fill_rule))
-    return VectorImage(float(w), float(h), shapes)
-
-
-def to_tensors(image: VectorImage, segments: int | None = None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """``VectorImage`` -> ``points (P, 3S, 2)`` normalised, ``colors (G, 3)``, ``shape_index (P,)``.
-
-    Contours with fewer segments are subdivided (shape unchanged) to the common ``S``:
-    ``segments``, or the largest count present.
-    """
-    contours, sidx, colors = [], [], []
-    for gi, shape in enumerate(image.shapes):
-        colors.append(shape.color)
-        for c in shape.contours:
-            contours.append(torch.as_tensor(c, dtype=torch.float64))
-            sidx.append(gi)
-    if not contours:
-        raise InputError("the SVG has no closed path")
-    s = segments or max(len(c) // 3 for c in contours)
-    pts = torch.stack([subdivide_to(c, s) for c in contours])  # (P, 3S, 2) px
-    pts = pts / torch.tensor([image.width, image.height], dtype=torch.float64)
-    return pts, torch.tensor(colors, dtype=torch.float64), torch.tensor(sidx, dtype=torch.long)
-
-
-def rasterize_svg(text: str | bytes, width: int, height: int) -> np.ndarray:
-    """Render SVG text with cairosvg at ``width x height`` over white.
-
-    Returns:
-        ``(H, W, 3)`` float64 array in [0, 1].
-    """
-    import cairosvg
-    from PIL import Image
-
-    data = text.encode() if isinstance(text, str) else text
-    png = cairosvg.svg2png(bytestring=data, output_width=width, output_height=height)
-    img = Image.open(io.BytesIO(png)).convert("RGBA")
-    arr = np.asarray(img, dtype=np.float64) / 255.0
-    rgb, a = arr[..., :3], arr[..., 3:]
-    return rgb * a + (1 - a)
+    first = frames[0]
+    sig = [[len(c) for c in s.contours] for s in first.shapes]
+    for f in frames:
+        if [[len(c) for c in s.contours] for s in f.shapes] != sig:
+            raise ValueError("frames differ in structure; decode them with keep_all=True and fixed segments")
+    seq = frames + frames[-2:0:-1]  # ping-pong
+    base = to_svg(first, decimals)
+    out = base[: base.rfind("</svg>")]
+    out = out[: out.find("<path")] if "<path" in out else out
+    parts = [out]
+    for si, shape in enumerate(first.shapes):
+        values = ";".join(" ".join(contour_d(c, decimals) for c in f.shapes[si].contours) for f in seq + [seq[0]])
+        r, g, b = (int(round(v * 255)) for v in shape.color)
+        parts.append(
+            f'<path d="{values.split(";")[0]}" fill="#{r:02x}{g:02x}{b:02x}" fill-rule="{shape.fill_rule}" stroke="none">'
+            f'<animate attributeName="d" dur="{seconds * 2:g}s" repeatCount="indefinite" values="{values}"/></path>'
+        )
+    parts.append("</svg>")
+    return "".join(parts)

@@ -14,24 +14,22 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import torch
 
-from .svg import VectorImage
+from ..raster.bezier import cubic_at, segment_controls
+from .image import VectorImage
 
 SAMPLES = 12  # points per original segment when measuring a merge
 
 
 def _bezier(ctrl: np.ndarray, t: np.ndarray) -> np.ndarray:
     """``ctrl (4, 2)``, ``t (N,)`` -> ``(N, 2)``."""
-    t = t[:, None]
-    u = 1 - t
-    return u**3 * ctrl[0] + 3 * u * u * t * ctrl[1] + 3 * u * t * t * ctrl[2] + t**3 * ctrl[3]
+    return cubic_at(ctrl, t)
 
 
 def _segments(points: np.ndarray) -> np.ndarray:
     """``(3S, 2)`` -> ``(S, 4, 2)``."""
-    s = len(points) // 3
-    idx = (np.arange(s)[:, None] * 3 + np.arange(4)[None]) % len(points)
-    return points[idx]
+    return segment_controls(torch.from_numpy(points)).numpy()
 
 
 def _tangent(ctrl: np.ndarray, at_start: bool) -> np.ndarray | None:

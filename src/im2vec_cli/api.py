@@ -1,0 +1,135 @@
+"""The Python API: what the ``im2vec`` command does, as functions.
+
+Pictures go in as Pillow images, NumPy arrays (``(H, W)``, ``(H, W, 3)`` or ``(H, W, 4)``,
+uint8 or float in [0, 1]), ``(3, H, W)`` tensors or file paths; vector images come out as
+``VectorImage`` (``.to_svg()`` gives the SVG text, in the input's pixel frame). Nothing here
+prints or exits: errors are ``Im2VecError`` (one line, for users) or ``ValueError`` (for
+programmers).
+
+    >>> import im2vec_cli as iv
+    >>> model = iv.load_model("fonts")
+    >>> svg = iv.vectorize("examples/glyph_a.png", model).to_svg()
+    >>> z = iv.encode(["examples/glyph_a.png", "examples/glyph_R.png"], model)   # (2, 128)
+    >>> frames = iv.interpolate(z[0], z[1], model, steps=4)                      # 6 VectorImages
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+
+import numpy as np
+import torch
+
+from . import infer
+from . import refine as refinement
+from .errors import ModelError
+from .files import as_image
+from .model.pretrained import DEFAULT_MODEL, from_pretrained
+from .raster import compiling
+from .runtime import resolve_device
+from .vector import VectorImage, simplify
+
+__all__ = ["decode", "encode", "interpolate", "load_model", "sample", "vectorize"]
+
+
+def load_model(name_or_dir: str = DEFAULT_MODEL, device: str | torch.device = "auto"):
+    """A shipped model by name (``fonts``, ``mnist``, ``emoji``, ``icons``) or a model folder
+    written by ``im2vec train`` / ``export``, on ``device`` (``auto``: CUDA, then MPS, then CPU)."""
+    dev = device if isinstance(device, torch.device) else resolve_device(device)
+    return from_pretrained(name_or_dir, dev)
+
+
+def _model(model):
+    return load_model(model) if isinstance(model, str) else model
+
+
+def vectorize(images, model=DEFAULT_MODEL, *, refine: bool = True, effort: str = "fast",
+              segments: int | str | None = None, quality: float | None = None, max_paths: int | None = None,
+              simplify_px: float | None = None) -> VectorImage | list[VectorImage]:
+    """Vectorize one picture (or a list of them) into closed cubic paths.
+
+    Args:
+        images: a picture, or a list of pictures (any size each).
+        model: a model from ``load_model``, or its name.
+        refine: fit the paths to each picture through the renderer (``refine.refine``);
+            ``False`` gives the model's guess alone, in one batch.
+        effort: with ``refine``, ``"fast"`` or ``"best"`` (``refine.EFFORTS``).
+        segments: cubic segments per path (default: the model's), or ``"auto"`` (the model's
+            segment predictor chooses per path at ``quality``).
+        max_paths: keep at most this many paths (the largest).
+        simplify_px: merge segments while the outline moves less than this many input pixels
+            (default 0.25 with ``refine``, else 0).
+
+    Returns:
+        One ``VectorImage`` per picture (a list for a list), in each picture's pixel frame.
+    """
+    model = _model(model)
+    one = not isinstance(images, (list, tuple))
+    pictures = [as_image(x) for x in ([images] if one else images)]
+    if segments == "auto" and model.segment_predictor is None:
+        raise ModelError(f"model {getattr(model, 'name', '?')!r} has no segment predictor for segments='auto' "
+                         "(add one with `im2vec train-aux`)")
+    if effort not in refinement.EFFORTS:
+        raise ValueError(f"effort must be one of {sorted(refinement.EFFORTS)}, got {effort!r}")
+    kw = {"segments": segments, "quality": quality, "max_paths": max_paths}
+    if refine:
+        settings = refinement.EFFORTS[effort]
+        if simplify_px is not None:
+            settings = dataclasses.replace(settings, simplify_tol=simplify_px)
+        with compiling(False):  # every input shape would recompile: far more than it saves
+            out = [refinement.refine(model, p, settings=settings, **kw)[0] for p in pictures]
+    else:
+        out = [simplify(v, simplify_px or 0.0) for v in infer.vectorize(model, pictures, **kw)]
+    return out[0] if one else out
+
+
+def encode(images, model=DEFAULT_MODEL) -> np.ndarray:
+    """Latents (posterior means) of a picture or a list of pictures: ``(N, D)`` float32."""
+    model = _model(model)
+    pictures = [as_image(x) for x in (images if isinstance(images, (list, tuple)) else [images])]
+    return infer.encode(model, pictures).numpy().astype(np.float32)
+
+
+def _latents(z, model) -> torch.Tensor:
+    """Latents ``(N, D)`` or ``(D,)`` (array-like) -> float32 ``(N, D)``, checked."""
+    t = torch.as_tensor(np.asarray(z, dtype=np.float32))
+    t = t.view(1, -1) if t.dim() == 1 else t
+    if t.dim() != 2 or t.shape[1] != model.config.latent:
+        raise ValueError(f"latents must be (N, {model.config.latent}) or ({model.config.latent},), got {tuple(t.shape)}")
+    return t
+
+
+def decode(z, model=DEFAULT_MODEL, *, segments: int | None = None, keep_all: bool = False) -> list[VectorImage]:
+    """Latents ``(N, D)`` (or one ``(D,)``) -> vector images on the model's square canvas.
+
+    ``keep_all`` keeps unused paths, so that every image has the same paths (morphs)."""
+    model = _model(model)
+    return infer.decode(model, _latents(z, model), segments=segments, keep_all=keep_all)
+
+
+def sample(n: int, model=DEFAULT_MODEL, *, seed: int = 0, temperature: float = 1.0,
+           segments: int | None = None) -> list[VectorImage]:
+    """``n`` new graphics: latents drawn from N(0, temperature^2 I) (seeded), decoded."""
+    model = _model(model)
+    if n < 1:
+        raise ValueError(f"n must be >= 1, got {n}")
+    z = torch.randn(n, model.config.latent, generator=torch.Generator().manual_seed(seed)) * temperature
+    return infer.decode(model, z, segments=segments)
+
+
+def interpolate(a, b, model=DEFAULT_MODEL, *, steps: int = 4, segments: int | None = None,
+                keep_all: bool = False) -> list[VectorImage]:
+    """``steps + 2`` frames from ``a`` to ``b`` (endpoints included), each a picture or a latent
+    ``(D,)``, decoded from evenly spaced latents. ``keep_all`` as in ``decode`` (for
+    ``vector.animated_svg``)."""
+    model = _model(model)
+    za, zb = (_endpoint(x, model) for x in (a, b))
+    return infer.decode(model, infer.lerp_latents(za, zb, steps), segments=segments, keep_all=keep_all)
+
+
+def _endpoint(x, model) -> torch.Tensor:
+    """A picture or a latent -> ``(D,)``."""
+    if isinstance(x, (np.ndarray, torch.Tensor, Sequence)) and not isinstance(x, str) and np.asarray(x).ndim == 1:
+        return _latents(x, model)[0]
+    return infer.encode(model, [as_image(x)])[0]

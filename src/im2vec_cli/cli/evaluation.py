@@ -1,0 +1,93 @@
+"""``eval``: the paper's metrics for a model (Table 1, Table 2, Fig. 5)."""
+
+from __future__ import annotations
+
+import click
+
+from .app import EXIT_HELP, cli, warn
+from .options import load_model, model_options, parse_segments, parse_sweep
+from .streams import write_output
+
+
+def markdown_table(res: dict, with_train: bool) -> str:
+    """The figures of an ``eval`` result as a markdown table (mean ± standard error, n)."""
+    rows = [("reconstruction L2 (Table 1)", "recon_l2", "images")]
+    if with_train:
+        rows += [("generation L2 (Table 2)", "generation_l2", "generated"),
+                 ("interpolation L2 (Table 2)", "interpolation_l2", "interpolants")]
+    if "outline_iou" in res:
+        rows += [("outline IoU at 4x", "outline_iou", "outlines"), ("Chamfer distance (px)", "chamfer_px", "outlines")]
+    lines = [f"| metric | {res['model']} | n |", "|---|---|---|"]
+    lines += [f"| {label} | {res[key]:.4f} ± {res[key + '_stderr']:.4f} | {res[n]} |" for label, key, n in rows]
+    if "paths" in res:
+        lines += [f"| paths / segments per image | {res['paths']:.2f} / {res['segments']:.1f} | {res['images']} |"]
+    return "\n".join(lines) + "\n"
+
+
+def _sweeps(model, files, ks) -> dict:
+    from ..evaluate import segments_sweep
+
+    out = {"segments_sweep": segments_sweep(model, files, ks)}
+    if model.decoder.deform is not None:
+        out["segments_sweep_deform_off"] = segments_sweep(model, files, ks, deform=False)
+    return out
+
+
+@cli.command("eval", epilog=EXIT_HELP)
+@click.option("--data", "data_dir", required=True, help="Test images (DATA/test when it exists).")
+@click.option("--limit", type=click.IntRange(1), default=None, help="Evaluate a seeded subset of N images.")
+@click.option("--train-data", "train_dir", default=None,
+              help="Training images (DATA/train when it exists): adds the generation and interpolation metrics.")
+@click.option("--samples", type=click.IntRange(1), default=1000, show_default=True, help="Prior samples (generation).")
+@click.option("--pairs", type=click.IntRange(1), default=250, show_default=True, help="Training pairs (interpolation).")
+@click.option("--segments", default=None, help="Cubic segments per path (default: the model's).")
+@click.option("-o", "--output", default="-", show_default=True, help="JSON file or -.")
+@click.option("--markdown", default=None, help="Also write the figures as a markdown table to this file.")
+@click.option("--sweep", default=None, metavar="K1-K2",
+              help="Segments ablation (paper Fig. 5): reconstruction L2 at every k in K1..K2, with the sample "
+                   "deformation on and switched off at inference.")
+@click.option("--plot", default=None, help="With --sweep: write the ablation plot to this PNG (needs matplotlib).")
+@model_options
+def eval_cmd(data_dir, limit, train_dir, samples, pairs, segments, output, markdown, sweep, plot, model_name, device,
+             seed):
+    """The paper's metrics for a model, measured on the SVGs it writes (rendered by cairosvg).
+
+    Reconstruction L2 (Table 1) on the test images, at each image's size; with --train-data,
+    generation and interpolation L2 (Table 2): the MSE of decoded prior samples and of
+    interpolants between training pairs to their nearest training image, at the model size.
+    Where the test images have their true outline beside them (NAME.svg, as `im2vec data
+    fonts` writes), also IoU at 4x and the Chamfer distance; always paths and segments per image.
+    An ImageVAE baseline (`train --arch imagevae`) is scored on its raster output, without
+    the vector metrics.
+    """
+    import json
+
+    from ..data.folder import load_folder, split_dir
+    from ..evaluate import eval_files, generation_l2, interpolation_l2, reconstruction_l2, sweep_plot
+
+    if plot and not sweep:
+        raise click.UsageError("--plot needs --sweep")
+    ks = parse_sweep(sweep) if sweep else None
+    model = load_model(model_name, device, seed, raster_ok=True)
+    if ks and model.raster_output:
+        raise click.UsageError("--sweep: the ImageVAE baseline has no segments")
+    k = parse_segments(segments)
+    res = {"model": getattr(model, "name", model_name), "arch": model.config.arch}
+    files = eval_files(data_dir, limit, seed)
+    res.update(reconstruction_l2(model, files, segments=k))
+    if train_dir:
+        train, _ = load_folder(split_dir(train_dir, "train"), model.config.image_size, fit=model.config.fit,
+                               on_skip=lambda msg: warn(f"skipped {msg}"))
+        res["train_images"] = len(train)
+        res.update(generation_l2(model, train, samples=samples, seed=seed, segments=k))
+        res.update(interpolation_l2(model, train, pairs=pairs, seed=seed, segments=k))
+    if ks:
+        res.update(_sweeps(model, files, ks))
+    write_output(output, json.dumps(res, indent=1) + "\n")
+    if plot:
+        series = {"sample deformation": res["segments_sweep"]}
+        if "segments_sweep_deform_off" in res:
+            series["deformation off at inference"] = res["segments_sweep_deform_off"]
+        write_output(plot, sweep_plot(series, f"{res['model']}: {res['images']} test images"))
+    if markdown:
+        write_output(markdown, markdown_table(res, bool(train_dir)))

@@ -1,0 +1,95 @@
+"""``sample`` and ``interpolate``: new graphics from the latent space."""
+
+from __future__ import annotations
+
+import click
+
+from ..errors import Im2VecError
+from .app import EXIT_HELP, cli
+from .options import load_model, model_options, nonempty, parse_segments
+from .streams import load_input_image, make_folder, write_output
+
+
+@cli.command(epilog=EXIT_HELP)
+@click.option("--n", "count", type=click.IntRange(1, 10000), default=16, show_default=True, help="How many samples.")
+@click.option("-o", "--output", default="samples", show_default=True, callback=nonempty, help="Output folder.")
+@click.option("--segments", default=None, help="Cubic segments per path (default: the model's).")
+@click.option("--temperature", type=click.FloatRange(0), default=1.0, show_default=True, help="Prior std scale.")
+@model_options
+def sample(count, output, segments, temperature, model_name, device, seed):
+    """Decode N latents drawn from the prior (seeded) into SVGs, plus contact.png."""
+    from .. import api
+
+    model = load_model(model_name, device, seed)
+    images = api.sample(count, model, seed=seed, temperature=temperature, segments=parse_segments(segments))
+    write_set(output, "sample", images)
+
+
+def write_set(output: str, stem: str, images) -> None:
+    """``OUT/<stem>_<i>.svg`` for each image, and ``OUT/contact.png``."""
+    from ..vector import contact_sheet
+
+    out = make_folder(output)
+    width = len(str(len(images) - 1))
+    for i, im in enumerate(images):
+        write_output(out / f"{stem}_{i:0{width}d}.svg", im.to_svg())
+    write_output(out / "contact.png", contact_sheet(images))
+    click.echo(f"wrote {len(images)} SVGs and contact.png to {out}/", err=True)
+
+
+def latent_from(model, item: str):
+    """An image file, or a latent from `encode` (.npy, or a .json/.jsonl line) -> ``(D,)``."""
+    import json
+
+    import numpy as np
+    import torch
+
+    from .. import api
+
+    low = item.lower()
+    if low.endswith(".npy"):
+        try:
+            z = torch.from_numpy(np.load(item, allow_pickle=False)).float().view(-1)
+        except (OSError, ValueError) as exc:
+            raise Im2VecError(f"{item}: not a readable .npy latent ({exc})") from None
+    elif low.endswith((".json", ".jsonl")):
+        try:
+            with open(item) as f:
+                z = torch.tensor(json.loads(f.readline())["latent"], dtype=torch.float32)
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise Im2VecError(f"{item}: not a latent JSON line from `im2vec encode` ({exc})") from None
+    else:
+        return torch.from_numpy(api.encode(load_input_image(item), model)[0])
+    if z.numel() != model.config.latent:
+        raise Im2VecError(f"{item}: latent has {z.numel()} values, the model expects {model.config.latent}")
+    if not torch.isfinite(z).all():
+        raise Im2VecError(f"{item}: latent contains NaN or infinite values")
+    return z
+
+
+@cli.command(epilog=EXIT_HELP)
+@click.argument("a", callback=nonempty)
+@click.argument("b", callback=nonempty)
+@click.option("--steps", type=click.IntRange(0, 1000), default=4, show_default=True, help="In-between frames.")
+@click.option("-o", "--output", default="interpolation", show_default=True, callback=nonempty, help="Output folder.")
+@click.option("--segments", default=None, help="Cubic segments per path (default: the model's).")
+@click.option("--animate", is_flag=True, help="Also write morph.svg, an SMIL animation from A to B.")
+@model_options
+def interpolate(a, b, steps, output, segments, animate, model_name, device, seed):
+    """Decode a linear interpolation between A and B (images, or latents from `encode`).
+
+    Writes frame_*.svg (endpoints included) and contact.png to the output folder.
+    """
+    from pathlib import Path
+
+    from .. import api
+    from ..vector import animated_svg
+
+    model = load_model(model_name, device, seed)
+    za, zb = latent_from(model, a), latent_from(model, b)
+    k = parse_segments(segments)
+    write_set(output, "frame", api.interpolate(za, zb, model, steps=steps, segments=k))
+    if animate:
+        full = api.interpolate(za, zb, model, steps=steps, segments=k, keep_all=True)
+        write_output(Path(output) / "morph.svg", animated_svg(full))
+        click.echo(f"wrote {Path(output) / 'morph.svg'}", err=True)

@@ -1,0 +1,62 @@
+"""Options shared by several commands, and their parsers (``--segments``, ``--sweep``)."""
+
+from __future__ import annotations
+
+import click
+
+
+def device_option(f):
+    return click.option("--device", default="auto", show_default=True, help="auto, cpu, cuda[:N] or mps.")(f)
+
+
+def model_options(f):
+    """``--model``, ``--device`` and ``--seed``."""
+    f = click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")(f)
+    f = device_option(f)
+    f = click.option("--model", "model_name", default="fonts", show_default=True,
+                     help="Shipped model name (see models/) or a directory written by `train`.")(f)
+    return f
+
+
+def load_model(name: str, device: str, seed: int, raster_ok: bool = False):
+    """The model for a command, seeded; the ImageVAE baseline only where ``raster_ok``."""
+    from ..api import load_model as load
+    from ..errors import ModelError
+    from ..runtime import seed_everything
+
+    seed_everything(seed)
+    model = load(name, device)
+    if model.raster_output and not raster_ok:
+        raise ModelError(f"{name} is an ImageVAE baseline: it draws pixels, not paths (only `im2vec eval` takes it)")
+    return model
+
+
+def parse_segments(value: str | None) -> int | str | None:
+    """``--segments``: a whole number in [1, 200], ``auto``, or unset."""
+    if value is None:
+        return None
+    if value == "auto":
+        return "auto"
+    try:
+        k = int(value)
+    except ValueError:
+        raise click.BadParameter(f"{value!r} is not a whole number", param_hint="--segments") from None
+    if not 1 <= k <= 200:
+        raise click.BadParameter("must be between 1 and 200", param_hint="--segments")
+    return k
+
+
+def parse_sweep(text: str) -> list[int]:
+    """``--sweep``: ``"6-25"`` -> ``[6, ..., 25]``."""
+    lo, sep, hi = text.partition("-")
+    if not (sep and lo.strip().isdigit() and hi.strip().isdigit()) or not 1 <= int(lo) <= int(hi) <= 256:
+        raise click.BadParameter(f"expected K1-K2 with 1 <= K1 <= K2 <= 256, got {text!r}", param_hint="--sweep")
+    return list(range(int(lo), int(hi) + 1))
+
+
+def nonempty(ctx, param, value):
+    """Click callback: refuse ``""`` for a path argument, naming it (``""`` is not the current folder)."""
+    values = value if isinstance(value, tuple) else (value,)
+    if any(v == "" for v in values):
+        raise click.BadParameter("is empty (give a file name, or - for stdin/stdout)", ctx=ctx, param=param)
+    return value

@@ -1,0 +1,88 @@
+"""Standard input and output, and files given on the command line (``-`` is stdin/stdout).
+
+Every write to a file is atomic (``files.atomic_write``); every failure is one ``Im2VecError`` line.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+from ..errors import Im2VecError
+
+
+def stdin_bytes() -> bytes:
+    """All of stdin; a closed or unreadable stdin is one error line."""
+    if sys.stdin is None or sys.stdin.closed:
+        raise Im2VecError("stdin is closed")
+    try:
+        return sys.stdin.buffer.read()
+    except (OSError, ValueError) as exc:
+        raise Im2VecError(f"stdin: cannot read ({getattr(exc, 'strerror', None) or exc})") from None
+
+
+def read_input(path: str) -> bytes:
+    """The bytes of a file, or of stdin for ``-``."""
+    if path == "-":
+        return stdin_bytes()
+    try:
+        return Path(path).read_bytes()
+    except FileNotFoundError:
+        raise Im2VecError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise Im2VecError(f"{path}: is a directory") from None
+    except OSError as exc:
+        raise Im2VecError(f"{path}: cannot read ({exc.strerror or exc})") from None
+
+
+def load_input_image(item: str):
+    """An image file (or ``-``: stdin) as ``(3, H, W)`` in [0, 1] over white."""
+    from ..files import load_image
+
+    if item == "-":
+        return load_image("<stdin>", stdin_bytes())
+    return load_image(item)
+
+
+def write_stdout(raw: bytes) -> None:
+    """Write to stdout; a closed pipe or a full device is one ``Im2VecError`` line, and
+    stdout is then pointed at /dev/null so that Python's exit flush stays quiet."""
+    try:
+        if sys.stdout is None:
+            raise OSError("stdout is closed")
+        sys.stdout.buffer.write(raw)
+        sys.stdout.buffer.flush()
+    except (OSError, ValueError) as exc:
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+            os.close(devnull)
+        except (OSError, ValueError, AttributeError):
+            pass
+        why = "closed (broken pipe)" if isinstance(exc, BrokenPipeError) else (getattr(exc, "strerror", None) or exc)
+        raise Im2VecError(f"stdout: cannot write ({why})") from None
+
+
+def write_output(path: str | os.PathLike, data: bytes | str) -> None:
+    """Write to stdout for ``-``, else atomically; a failed write is one ``Im2VecError`` line."""
+    from ..files import atomic_write
+
+    raw = data.encode("utf-8") if isinstance(data, str) else data
+    if str(path) == "-":
+        write_stdout(raw)
+        return
+    try:
+        atomic_write(path, raw)
+    except OSError as exc:
+        raise Im2VecError(f"{path}: cannot write ({exc.strerror or exc})") from None
+
+
+def make_folder(path: str | os.PathLike) -> Path:
+    """Create an output folder (and its parents); a failure is one error line."""
+    out = Path(path)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise Im2VecError(f"{out}: cannot create folder ({exc.strerror or exc})") from None
+    return out

@@ -1,0 +1,181 @@
+"""``train``, ``train-aux`` and ``export``: models from images."""
+
+from __future__ import annotations
+
+import click
+
+from ..errors import Im2VecError
+from .app import EXIT_HELP, cli, warn
+from .options import device_option, load_model, model_options
+
+
+def _configs(config_file, model_opts: dict, train_opts: dict):
+    """``--config`` JSON sections overridden by the command-line options (``None``: unset).
+
+    Returns the two configs and the model options given on the command line or in the file."""
+    import json
+
+    from ..config import ModelConfig, TrainConfig
+
+    sections = {}
+    if config_file:
+        try:
+            with open(config_file) as f:
+                sections = json.loads(f.read())
+        except (OSError, json.JSONDecodeError) as exc:
+            raise Im2VecError(f"{config_file}: cannot read config ({exc})") from None
+        if not isinstance(sections, dict):
+            raise Im2VecError(f"{config_file}: expected a JSON object with 'model' and/or 'train' sections")
+    for name in ("model", "train"):
+        if not isinstance(sections.get(name, {}), dict):
+            raise Im2VecError(f"{config_file}: the '{name}' section must be a JSON object")
+    m = {**sections.get("model", {}), **{k: v for k, v in model_opts.items() if v is not None}}
+    t = {**sections.get("train", {}), **{k: v for k, v in train_opts.items() if v is not None}}
+    return ModelConfig.from_dict(m), TrainConfig.from_dict(t), m
+
+
+class _Progress:
+    """Training events -> a progress bar (or plain lines when stderr is not a terminal) and warnings."""
+
+    def __init__(self, device):
+        self.device, self.bar = device, None
+
+    def __call__(self, e: dict) -> None:
+        from ..runtime import progress
+
+        kind = e.get("event")
+        if kind == "skip":
+            warn(f"skipped {e['message']}")
+        elif kind == "data":
+            click.echo(f"training on {e['train']} images, validating on {e['val']} ({self.device})", err=True)
+            self.bar = progress(total=e["steps"], desc="train", unit="step")
+        elif kind == "resume":
+            self.bar.update(e["step"])
+        elif kind == "train":
+            self.bar.set_postfix(loss=f"{e['loss']:.4f}", img_s=f"{e['img_per_s']:.0f}", k=e["k"])
+            self.bar.update(e["step"] - self.bar.n)
+            if self.bar.disable:
+                click.echo(f"step {e['step']} loss {e['loss']:.5f} img/s {e['img_per_s']:.0f}", err=True)
+        elif kind == "nonfinite":
+            warn(f"step {e['step']}: loss or gradient not finite, update skipped ({e['in_a_row']} in a row)")
+        elif kind == "val":
+            click.echo(f"step {e['step']}: val pyramid L2 {e['val_pyramid_l2']:.5f}, MSE {e['val_mse']:.5f}", err=True)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+@cli.command(epilog=EXIT_HELP)
+@click.argument("data_dir", type=click.Path(file_okay=False))
+@click.option("--out", "run_dir", default="runs/latest", show_default=True, help="Run directory.")
+@click.option("--val", "val_dir", default=None, help="Validation folder (default: DATA_DIR/val, or a split).")
+@click.option("--config", "config_file", default=None, type=click.Path(dir_okay=False),
+              help="JSON with 'model' and/or 'train' sections (options below override it).")
+@click.option("--arch", type=click.Choice(["im2vec", "imagevae"]),
+              help="im2vec: the vector model; imagevae: the raster baseline of the paper (sec. 4). [im2vec]")
+@click.option("--size", type=click.IntRange(8), help="Image size (power of two). [64]")
+@click.option("--paths", type=click.IntRange(1), help="Paths per image. [4]")
+@click.option("--latent", type=click.IntRange(1), help="Latent size. [128]")
+@click.option("--grouping", type=click.Choice(["evenodd", "layers"]),
+              help="evenodd: one shape of all paths (glyphs, digits); layers: one coloured layer per path. [evenodd]")
+@click.option("--batch", type=click.IntRange(1), help="Batch size. [64]")
+@click.option("--steps", type=click.IntRange(1), help="Optimiser steps. [5000]")
+@click.option("--epochs", type=click.FloatRange(0, min_open=True), help="Instead of --steps: passes over the data.")
+@click.option("--lr", type=click.FloatRange(0, min_open=True), help="Peak learning rate. [5e-4]")
+@click.option("--beta", type=click.FloatRange(0), help="KL weight. [1e-5]")
+@click.option("--seed", type=int, help="Random seed. [0]")
+@click.option("--workers", type=click.IntRange(1), help="Image loading threads. [2]")
+@click.option("--resume", is_flag=True, help="Continue exactly from RUN/checkpoint.pt.")
+@click.option("--init", "init_model", default=None, metavar="NAME|DIR",
+              help="Fine-tune: start from this model's weights (a shipped name or a model folder), with a "
+                   "fresh optimiser and schedule; the model options come from it.")
+@device_option
+def train(data_dir, run_dir, val_dir, config_file, arch, size, paths, latent, grouping, batch, steps, epochs, lr,
+          beta, seed, workers, resume, init_model, device):
+    """Train an Im2Vec model on a folder of images (PNG/JPG, searched recursively).
+
+    A folder made by `im2vec data` (with train/ and val/) uses its own split. Unreadable
+    images are skipped with a warning. Ctrl-C saves a checkpoint; --resume continues.
+    The exported model is RUN/model (use it with --model RUN/model).
+    """
+    import os
+    import signal
+
+    from ..runtime import resolve_device
+    from ..train import train as run_train
+
+    model_cfg, train_cfg, model_given = _configs(
+        config_file, {"arch": arch, "image_size": size, "paths": paths, "latent": latent, "grouping": grouping},
+        {"batch": batch, "steps": steps, "lr": lr, "beta": beta, "seed": seed, "workers": workers})
+    dev = resolve_device(device)
+    init_state = None
+    if init_model is not None:
+        if resume:
+            raise click.UsageError("--init starts a new run; --resume continues one: give one of them")
+        if model_given:
+            raise click.UsageError("--init takes the model options from the model; drop " + ", ".join(sorted(model_given)))
+        start = load_model(init_model, "cpu", 0, raster_ok=True)
+        model_cfg, init_state = start.config, start.state_dict()
+
+    def _term(signum, frame):  # `kill` (and SIGINT-ignoring background jobs) checkpoint like Ctrl-C
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, _term)
+    report = _Progress(dev)
+    try:
+        out = run_train(data_dir, run_dir, model_cfg, train_cfg, device=dev, val_dir=val_dir, resume=resume,
+                        on_event=report, epochs=epochs, init_state=init_state)
+    finally:
+        report.close()
+    if os.environ.get("RANK", "0") == "0":
+        click.echo(f"model written to {out}", err=True)
+
+
+@cli.command("train-aux", epilog=EXIT_HELP)
+@click.argument("data_dir", type=click.Path(file_okay=False))
+@click.option("-o", "--output", required=True, help="Folder for the model with its segment predictor (may be the input's).")
+@click.option("--images", type=click.IntRange(1), default=2048, show_default=True,
+              help="Training images to measure (a seeded subset).")
+@click.option("--steps", type=click.IntRange(1), default=3000, show_default=True, help="Optimiser steps of the fit.")
+@model_options
+def train_aux(data_dir, output, images, steps, model_name, device, seed):
+    """Train the segment-count predictor (paper sec. 3.3) of a trained model.
+
+    Sweeps k for every path of DATA_DIR's images, fits loss(k) = a*exp(-b*k) + c per path
+    code, and writes the model with the predictor to -o; then `--segments auto` works.
+    """
+    import json
+    from pathlib import Path
+
+    import torch
+
+    from ..data.folder import load_folder, split_dir
+    from ..model.pretrained import save_pretrained, stored_half
+    from ..train_aux import AuxSettings, train_segment_predictor
+    from .streams import write_output
+
+    model = load_model(model_name, device, seed)
+    data, _ = load_folder(split_dir(data_dir, "train"), model.config.image_size, fit=model.config.fit,
+                          on_skip=lambda m: warn(f"skipped {m}"))
+    pick = torch.randperm(len(data), generator=torch.Generator().manual_seed(seed))[:images]
+    x = data[pick].float() / 255
+    click.echo(f"measuring {len(x)} images x {model.config.paths} paths", err=True)
+    out, report = train_segment_predictor(model, x, AuxSettings(steps=steps, seed=seed),
+                                          on_step=lambda e: click.echo(f"step {e['step']}: fit {e['fit']:.4f}, "
+                                                                       f"held-out {e['val_fit']:.4f}", err=True))
+    save_pretrained(out, output, half=stored_half(model_name))  # as stored: the VAE weights stay bit-identical
+    write_output(Path(output) / "segments.json", json.dumps(report, indent=1) + "\n")
+    click.echo(f"held-out fit (log MSE) {report['val_fit_log_mse']:.4f}; model written to {output}", err=True)
+
+
+@cli.command(epilog=EXIT_HELP)
+@click.argument("run_dir", type=click.Path(file_okay=False))
+@click.option("-o", "--output", required=True, help="Model folder to write (config.json + model.safetensors).")
+@click.option("--half", is_flag=True, help="Store the weights in fp16 (half the size).")
+def export(run_dir, output, half):
+    """Export the model of a training run's latest checkpoint (e.g. after Ctrl-C)."""
+    from ..model.pretrained import export_checkpoint
+
+    out, step = export_checkpoint(run_dir, output, half=half)
+    click.echo(f"exported step {step} to {out}", err=True)

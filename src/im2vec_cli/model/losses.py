@@ -1,0 +1,39 @@
+"""The training objective (paper sec. 3.4): L2 over a Gaussian pyramid (eq. 1) plus the KL term."""
+
+from __future__ import annotations
+
+import torch
+
+from ..raster import gaussian_pyramid, pyramid_l2, render_pyramid
+from .pretrained import unwrap_model
+
+
+def kl_divergence(mu: torch.Tensor, logvar: torch.Tensor) -> torch.Tensor:
+    """KL(q(z|x) || N(0, I)) summed over latent dims, averaged over the batch."""
+    return (-0.5 * (1 + logvar - mu.square() - logvar.exp()).sum(-1)).mean()
+
+
+def reconstruction_loss(model, images: torch.Tensor, segments: int, tau: float, sample: bool,
+                        supersample: int = 1, pyramid: str = "blur"):
+    """Pyramid L2 (eq. 1) of the reconstruction, and the KL term. ``images (B, 3, S, S)``.
+
+    ``model`` may be wrapped (DDP, ``torch.compile``); ``supersample > 1`` renders the finest
+    level from that many sub-pixels per side (``tau`` in sub-pixels there), so the loss sees
+    the edges a user's antialiased render shows. ``pyramid`` picks the coarser levels
+    (``render_pyramid``'s ``coarse``).
+
+    Returns ``(pyramid L2, KL, decoded)``: ``Decoded`` paths, or for the ImageVAE baseline its
+    ``(B, 3, S, S)`` raster, scored by the same pyramid loss.
+    """
+    m = unwrap_model(model)
+    cfg = m.config
+    dec, mu, logvar = model(images, segments, sample=sample)
+    target = gaussian_pyramid(images, cfg.levels)
+    if m.raster_output:
+        return pyramid_l2(gaussian_pyramid(dec, cfg.levels), target), kl_divergence(mu, logvar), dec
+    renders = render_pyramid(
+        dec.points, dec.colors, dec.depth, size=cfg.image_size, levels=cfg.levels, tau=tau,
+        fill_rule=dec.fill_rule, shape_index=dec.shape_index, samples=cfg.samples, composite="soft",
+        supersample=supersample, coarse=pyramid,
+    )
+    return pyramid_l2(renders, target), kl_divergence(mu, logvar), dec
