@@ -76,36 +76,45 @@ def render_coverage(
     if fill_rule not in ("nonzero", "evenodd"):
         raise ValueError(f"fill_rule must be 'nonzero' or 'evenodd', got {fill_rule!r}")
     h, w = _size(size)
-    b, p = points.shape[:2]
+    p = points.shape[1]
     radius = 8.0 * tau if radius is None else float(radius)
     scale = torch.tensor([w, h], dtype=points.dtype, device=points.device)
     verts = flatten_closed(points * scale, samples)  # (B, P, E, 2) pixel frame
-    e = verts.shape[2]
     sidx = shape_index_tensor(shape_index, p, points.device)
     active = boundary_edges(verts, sidx) if fill_rule == "nonzero" else None  # (B, P, E)
     ends = torch.roll(verts, shifts=-1, dims=2)  # each path closes on itself
     counts = torch.bincount(sidx) if sidx is not None else None
     if sidx is None or bool((counts == counts[0]).all()):
-        # Shapes of equal size (one path each, or one shape of all paths): each shape is a
-        # single edge set, so winding and nearest edge are computed per shape directly.
-        g = p if sidx is None else counts.numel()
-        order = torch.arange(p, device=points.device) if sidx is None else torch.argsort(sidx, stable=True)
-        a = verts[:, order].reshape(b * g, -1, 2)  # (B*G, (P/G)*E, 2)
-        bb = ends[:, order].reshape(b * g, -1, 2)
-        act = active[:, order].reshape(b * g, -1) if active is not None else None
-        wind = winding_number(a, bb, h, w)
-        cov = soft_coverage(a, bb, wind, h, w, radius=radius, tau=tau, fill_rule=fill_rule, active=act)
-        return cov.view(b, g, h, w)
-    else:
-        a, bb = verts.reshape(b * p, e, 2), ends.reshape(b * p, e, 2)
-        act = active.reshape(b * p, e) if active is not None else None
-        wind = winding_number(a, bb, h, w).view(b, p, h, w)
-        dist = nearest_distance(a, bb, h, w, radius=radius, active=act)[0].view(b, p, h, w)  # (B, P, H, W)
-        g = counts.numel()
-        wind = torch.zeros(b, g, h, w, dtype=wind.dtype, device=wind.device).index_add_(1, sidx, wind)
-        member = torch.arange(g, device=points.device).view(g, 1) == sidx.view(1, p)  # (G, P)
-        inf = torch.tensor(math.inf, dtype=dist.dtype, device=dist.device)
-        dist = torch.where(member.view(1, g, p, 1, 1), dist.unsqueeze(1), inf).min(dim=2).values  # (B, G, H, W)
+        return _coverage_equal_shapes(verts, ends, active, sidx, counts, (h, w), radius, tau, fill_rule)
+    return _coverage_by_path(verts, ends, active, sidx, counts.numel(), (h, w), radius, tau, fill_rule)
+
+
+def _coverage_equal_shapes(verts, ends, active, sidx, counts, size, radius, tau, fill_rule) -> torch.Tensor:
+    """Shapes of equal size (one path each, or one shape of all paths): each shape is a single
+    edge set, so winding and nearest edge are computed per shape directly. -> ``(B, G, H, W)``."""
+    (b, p), (h, w) = verts.shape[:2], size
+    g = p if sidx is None else counts.numel()
+    order = torch.arange(p, device=verts.device) if sidx is None else torch.argsort(sidx, stable=True)
+    a = verts[:, order].reshape(b * g, -1, 2)  # (B*G, (P/G)*E, 2)
+    bb = ends[:, order].reshape(b * g, -1, 2)
+    act = active[:, order].reshape(b * g, -1) if active is not None else None
+    wind = winding_number(a, bb, h, w)
+    cov = soft_coverage(a, bb, wind, h, w, radius=radius, tau=tau, fill_rule=fill_rule, active=act)
+    return cov.view(b, g, h, w)
+
+
+def _coverage_by_path(verts, ends, active, sidx, g, size, radius, tau, fill_rule) -> torch.Tensor:
+    """Shapes of different sizes: winding and distance per path, then summed (winding) and
+    minimised (distance) over each shape's paths. -> ``(B, G, H, W)``."""
+    (b, p, e), (h, w) = verts.shape[:3], size
+    a, bb = verts.reshape(b * p, e, 2), ends.reshape(b * p, e, 2)
+    act = active.reshape(b * p, e) if active is not None else None
+    wind = winding_number(a, bb, h, w).view(b, p, h, w)
+    dist = nearest_distance(a, bb, h, w, radius=radius, active=act)[0].view(b, p, h, w)  # (B, P, H, W)
+    wind = torch.zeros(b, g, h, w, dtype=wind.dtype, device=wind.device).index_add_(1, sidx, wind)
+    member = torch.arange(g, device=verts.device).view(g, 1) == sidx.view(1, p)  # (G, P)
+    inf = torch.tensor(math.inf, dtype=dist.dtype, device=dist.device)
+    dist = torch.where(member.view(1, g, p, 1, 1), dist.unsqueeze(1), inf).min(dim=2).values  # (B, G, H, W)
     return signed_coverage(dist, wind, radius, tau, fill_rule)
 
 

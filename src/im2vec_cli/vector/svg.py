@@ -62,6 +62,15 @@ _TOKEN = re.compile(r"[A-Za-z]|[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 OPEN_SUBPATH = "open subpath (no Z): im2vec reads closed paths only"
 
 
+def _close(cur: list[list[float]], pos, start, contours: list[np.ndarray]) -> None:
+    """``Z``: a straight closing segment back to ``start`` where needed, then the contour."""
+    if cur and pos is not None and start is not None and not np.allclose(pos, start):
+        a, b = np.asarray(pos), np.asarray(start)
+        cur += [*map(list, line_controls(a, b)), list(b)]
+    if len(cur) > 1:  # the last anchor is the start point again ("M x y Z" draws nothing)
+        contours.append(np.asarray(cur[:-1], dtype=np.float64))
+
+
 def parse_d(d: str) -> list[np.ndarray]:
     """Closed contours of a path made of absolute ``M``, ``C``, ``L`` and ``Z`` commands.
 
@@ -73,9 +82,7 @@ def parse_d(d: str) -> list[np.ndarray]:
     toks = _TOKEN.findall(d)
     contours: list[np.ndarray] = []
     cur: list[list[float]] = []
-    start = None
-    pos = None
-    cmd = None
+    start = pos = cmd = None  # the subpath's start, the current point, the current command
     i = 0
 
     def nums(k):
@@ -92,13 +99,8 @@ def parse_d(d: str) -> list[np.ndarray]:
             cmd = t
             i += 1
             if cmd in "Zz":
-                if cur and pos is not None and start is not None and not np.allclose(pos, start):
-                    a, b = np.asarray(pos), np.asarray(start)
-                    cur += [*map(list, line_controls(a, b)), list(b)]
-                if len(cur) > 1:  # the last anchor is the start point again ("M x y Z" draws nothing)
-                    contours.append(np.asarray(cur[:-1], dtype=np.float64))
-                cur = []
-                pos = start
+                _close(cur, pos, start, contours)
+                cur, pos = [], start
                 continue
         if cmd is None:
             raise InputError("path data must start with a command")

@@ -1,0 +1,124 @@
+"""The public Python API (``import im2vec_cli``): pictures in, ``VectorImage`` out, and the
+CLI writes what the API returns."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from xml.etree import ElementTree
+
+import numpy as np
+import pytest
+import torch
+from PIL import Image
+
+import im2vec_cli as iv
+from im2vec_cli.errors import InputError, ModelError
+from im2vec_cli.vector import VectorImage, rasterize_svg
+from tests.helpers import check_svg, make_tiny_model, png, run
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory):
+    folder = make_tiny_model(tmp_path_factory.mktemp("m") / "tiny")
+    return iv.load_model(folder, "cpu"), folder
+
+
+def _disc(w=40, h=24) -> np.ndarray:
+    yy, xx = np.mgrid[0:h, 0:w]
+    return np.where((xx - w / 2) ** 2 + (yy - h / 2) ** 2 < (min(w, h) / 3) ** 2, 0, 255).astype(np.uint8)
+
+
+def test_readme_example_runs_and_the_cli_writes_the_same_svg(model, tmp_path):
+    m, folder = model
+    src = png(tmp_path / "a.png", 40, 24)
+    svg = iv.vectorize(src, m, refine=False).to_svg()  # the README's five lines, without refinement
+    check_svg(svg, 40, 24)
+    res = run(["vectorize", src, "-o", "-", "--no-refine", "--model", folder])
+    assert res.exit_code == 0 and res.stdout == svg
+
+
+def test_every_picture_form_gives_the_same_result(model, tmp_path):
+    m, _ = model
+    arr = _disc()
+    pil = Image.fromarray(arr, "L")
+    pil.save(tmp_path / "d.png")
+    forms = [arr, arr.astype(np.float32) / 255, np.stack([arr] * 3, -1), pil, pil.convert("RGBA"),
+             torch.from_numpy(arr).float().div(255).expand(3, -1, -1), str(tmp_path / "d.png"), tmp_path / "d.png"]
+    svgs = {iv.vectorize(f, m, refine=False).to_svg() for f in forms}
+    assert len(svgs) == 1
+    vec = iv.vectorize(arr, m, refine=False)
+    assert isinstance(vec, VectorImage) and (vec.width, vec.height) == (40, 24)
+
+
+def test_lists_in_lists_out_and_refinement_never_worse(model):
+    m, _ = model
+    imgs = [_disc(), _disc(32, 32)]
+    guesses = iv.vectorize(imgs, m, refine=False)
+    fitted = iv.vectorize(imgs, m, refine=True)
+    assert isinstance(fitted, list) and len(fitted) == 2
+    def err(v, img):
+        target = np.stack([img / 255.0] * 3, -1)  # (H, W, 3)
+        return float(((rasterize_svg(v.to_svg(), img.shape[1], img.shape[0]) - target) ** 2).mean())
+
+    for img, g, f in zip(imgs, guesses, fitted):
+        assert err(f, img) <= err(g, img) * 1.05  # the judge is our renderer; cairo agrees within a few percent
+
+
+def test_encode_decode_sample_interpolate(model):
+    m, _ = model
+    z = iv.encode([_disc(), _disc(32, 32)], m)
+    assert z.shape == (2, m.config.latent) and z.dtype == np.float32
+    one = iv.encode(_disc(), m)
+    assert np.allclose(one[0], z[0], atol=1e-5)
+    s = m.config.image_size
+    assert all(v.width == s for v in iv.decode(z, m))
+    a, b = iv.sample(3, m, seed=5), iv.sample(3, m, seed=5)
+    assert [v.to_svg() for v in a] == [v.to_svg() for v in b]
+    frames = iv.interpolate(_disc(), z[1], m, steps=3)
+    assert len(frames) == 5
+    assert frames[-1].to_svg() == iv.decode(z[1], m)[0].to_svg()  # a latent endpoint is decoded as given
+
+
+def test_errors_are_raised_not_printed(model, capsys):
+    m, _ = model
+    with pytest.raises(InputError, match="too small"):
+        iv.vectorize(np.zeros((2, 2), np.uint8), m)
+    with pytest.raises(ValueError, match="image array"):
+        iv.vectorize(np.zeros((4, 4, 2), np.uint8), m)
+    with pytest.raises(ValueError, match="latents must be"):
+        iv.decode(np.zeros(3), m)
+    with pytest.raises(ModelError, match="segment predictor"):
+        iv.vectorize(_disc(), m, segments="auto")
+    with pytest.raises(ValueError, match="effort"):
+        iv.vectorize(_disc(), m, effort="slow")
+    assert capsys.readouterr() == ("", "")
+
+
+def test_help_does_not_import_torch():
+    code = "import sys; from im2vec_cli.cli import main; sys.argv=['im2vec','--help']\n" \
+           "try:\n    main()\nexcept SystemExit:\n    pass\nprint('torch' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip().splitlines()[-1] == "False"
+
+
+def test_empty_path_arguments_are_usage_errors_naming_the_argument(tmp_path, model):
+    _, folder = model
+    src = png(tmp_path / "a.png")
+    cases = [(["interpolate", src, "", "--steps", "4"], "'B'"), (["interpolate", "", src], "'A'"),
+             (["vectorize", "", "-o", str(tmp_path / "x.svg")], "'IMG...'"),
+             (["vectorize", src, "-o", ""], "'-o' / '--output'"), (["render", ""], "'SVG'")]
+    for args, name in cases:
+        res = run([*args, "--model", folder] if args[0] != "render" else args)
+        assert res.exit_code == 2, (args, res.output)
+        assert name in res.output and "is empty" in res.output, res.output
+        assert "Traceback" not in res.output
+    assert not (tmp_path / "x.svg").exists()
+
+
+def test_svg_of_the_api_is_valid_xml_of_closed_paths(model):
+    m, _ = model
+    root = ElementTree.fromstring(iv.vectorize(_disc(), m).to_svg())
+    for el in root.iter():
+        if el.tag.endswith("path"):
+            assert el.get("d").strip().endswith("Z")
