@@ -123,19 +123,22 @@ def image_to_tensor(img: Image.Image) -> torch.Tensor:
     return out.permute(2, 0, 1).contiguous()  # (3, H, W)
 
 
+def read_file(path: str | os.PathLike) -> bytes:
+    """The bytes of a file; a missing, unreadable or directory path is a one-line ``InputError``."""
+    try:
+        return Path(path).read_bytes()
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise InputError(f"{path}: is a directory") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+
+
 def load_image(path: str | os.PathLike, data: bytes | None = None) -> torch.Tensor:
     """Read an image file (or given bytes) as ``(3, H, W)`` in [0, 1] over white."""
     name = str(path)
-    if data is None:
-        try:
-            data = Path(path).read_bytes()
-        except FileNotFoundError:
-            raise InputError(f"{name}: no such file") from None
-        except IsADirectoryError:
-            raise InputError(f"{name}: is a directory") from None
-        except OSError as exc:
-            raise InputError(f"{name}: cannot read ({exc.strerror})") from None
-    img = open_image(data, name)
+    img = open_image(read_file(path) if data is None else data, name)
     try:
         return image_to_tensor(img)
     except MemoryError:

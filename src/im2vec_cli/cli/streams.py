@@ -24,16 +24,9 @@ def stdin_bytes() -> bytes:
 
 def read_input(path: str) -> bytes:
     """The bytes of a file, or of stdin for ``-``."""
-    if path == "-":
-        return stdin_bytes()
-    try:
-        return Path(path).read_bytes()
-    except FileNotFoundError:
-        raise Im2VecError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise Im2VecError(f"{path}: is a directory") from None
-    except OSError as exc:
-        raise Im2VecError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    from ..files import read_file
+
+    return stdin_bytes() if path == "-" else read_file(path)
 
 
 def load_input_image(item: str):
