@@ -125,3 +125,54 @@ def test_svg_reader_raises_only_input_error(text):
 def test_seed_images_load(seed):
     """The fuzz seeds themselves are valid (so the mutations start from real files)."""
     assert load_image("<seed>", SEEDS[seed]).shape == (3, 12, 10)
+
+
+NUMBER_TEXT = st.one_of(st.floats(allow_nan=True, allow_infinity=True).map(repr), st.integers().map(str),
+                        st.sampled_from(["nan", "inf", "-inf", "1e309", "", " ", "0x10", "1_0", "١"]), st.text(max_size=8))
+
+
+@given(NUMBER_TEXT)
+def test_option_parsers_accept_only_what_they_say(text):
+    """Every float option refuses NaN and infinities; seeds stay in [0, 2^32); --segments and
+    --sweep take only their documented forms. Anything else is click's usage error (exit 2)."""
+    import math
+
+    import click
+
+    from im2vec_cli.cli.options import SEED, Finite, parse_segments, parse_sweep
+
+    for param, check in ((Finite(0), lambda v: math.isfinite(v) and v >= 0),
+                         (Finite(0, min_open=True), lambda v: math.isfinite(v) and v > 0),
+                         (SEED, lambda v: 0 <= v < 2**32)):
+        try:
+            value = param.convert(text, None, None)
+        except click.BadParameter:
+            continue
+        assert check(value), (text, value)
+    for parse, check in ((parse_segments, lambda v: v == "auto" or (isinstance(v, int) and 1 <= v <= 200)),
+                         (parse_sweep, lambda v: 1 <= v[0] <= v[-1] <= 256)):
+        try:
+            assert check(parse(text))
+        except click.BadParameter:
+            pass
+
+
+@given(st.sampled_from(["1e308", "-1e308", "1e6", "999999", "1e7", "nan", "inf", "0", "-0", "1e-320", "12"]),
+       st.sampled_from(["0 0 10 10", "0 0 1e7 10", "0 0 0 10", "0 0 -5 5", "0 0 nan 10", "1e308 0 10 10", ""]),
+       st.integers(0, 3))
+def test_svg_size_checks(coordinate, view_box, repeat):
+    """Coordinates and canvases at and past the bounds: an ``InputError`` or a VectorImage whose
+    every number is finite and within the documented bound, never anything else."""
+    from im2vec_cli.vector.read import MAX_COORD
+
+    box = f' viewBox="{view_box}"' if view_box else ' width="10" height="10"'
+    d = "M 1 1 " + f"L {coordinate} 2 L 3 {coordinate} " * (1 + repeat) + "Z"
+    text = f'<svg xmlns="http://www.w3.org/2000/svg"{box}><path d="{d}"/></svg>'
+    try:
+        im = from_svg(text)
+    except InputError:
+        return
+    assert 0 < im.width <= MAX_COORD and 0 < im.height <= MAX_COORD
+    for s in im.shapes:
+        for c in s.contours:
+            assert np.isfinite(c).all() and (np.abs(c) <= MAX_COORD).all()

@@ -12,6 +12,7 @@ import errno
 import io
 import json
 import os
+import shutil
 import subprocess
 import sys
 import zlib
@@ -310,14 +311,6 @@ def in_render_not_xml(d, m):
     return _render(d, "<svg <<<")
 
 
-def in_render_relative_commands(d, m):
-    return _render(d, _svg("m 1 1 l 5 0 l 0 5 z"))
-
-
-def in_render_open_path(d, m):
-    return _render(d, _svg("M 1 1 C 2 2 3 3 4 4"))
-
-
 def in_render_bad_viewbox(d, m):
     return _render(d, _svg("M 1 1 L 9 1 L 9 9 Z", "0 0 ten 10"))
 
@@ -342,6 +335,173 @@ def in_unknown_device(d, m):
 
 def in_sample_zero(d, m):
     return ["sample", "--n", "0", "-o", str(d / "outdir")], None
+
+
+def in_render_relative_commands(d, m):
+    return _render(d, _svg("m 1 1 l 5 0 l 0 5 z"))
+
+
+def in_render_open_path(d, m):
+    return _render(d, _svg("M 1 1 L 9 1 L 9 9"))  # filled as SVG fills it: closed back to the start
+
+
+def in_render_font_outline(d, m):
+    # an ordinary font outline as exported by a font editor: H, V, Q, T, S, relative commands
+    return _render(d, _svg("M1 1H9V3h-6v2q2 0 2 2t-2 2s-1 0 -1 -1z"))
+
+
+def in_render_stroke(d, m):
+    return _render(d, _svg('M 1 1 L 9 1 L 9 9 Z" stroke="red'))
+
+
+def in_render_gradient(d, m):
+    return _render(d, '<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10"><defs><linearGradient id="g">'
+                      '<stop offset="0" stop-color="red"/></linearGradient></defs>'
+                      '<path d="M 1 1 L 9 1 L 9 9 Z" fill="url(#g)"/></svg>')
+
+
+def in_render_text(d, m):
+    return _render(d, '<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10"><text x="1" y="8">a</text></svg>')
+
+
+def in_render_huge_coordinates(d, m):
+    return _render(d, _svg("M 1e308 1 L 9 1 L 9 9 Z"))
+
+
+def in_render_million_segments(d, m):
+    return _render(d, _svg("M 1 1 " + "L 2 2 L 1 1 " * 500_000 + "Z"))
+
+
+def in_render_huge_viewbox(d, m):
+    return _render(d, _svg("M 1 1 L 9 1 L 9 9 Z", "0 0 100000 100000"))
+
+
+def in_render_scale_1000(d, m):
+    args, stdin = _render(d, _svg("M 1 1 L 9 1 L 9 9 Z", "0 0 64 64"))
+    return args + ["--scale", "1000"], stdin
+
+
+def in_render_scale_nan(d, m):
+    args, stdin = _render(d, _svg("M 1 1 L 9 1 L 9 9 Z"))
+    return args + ["--scale", "nan"], stdin
+
+
+def in_render_tau_nan(d, m):
+    args, stdin = _render(d, _svg("M 1 1 L 9 1 L 9 9 Z"))
+    return args + ["--tau", "nan"], stdin
+
+
+def in_render_onto_its_input(d, m):
+    (d / "x.svg").write_text(_svg("M 1 1 L 9 1 L 9 9 Z"))
+    return ["render", str(d / "x.svg"), "-o", str(d / "x.svg")], None
+
+
+def in_quality_nan(d, m):
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--quality", "nan"], None
+
+
+def in_simplify_nan(d, m):
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--simplify", "nan"], None
+
+
+def in_temperature_inf(d, m):
+    return ["sample", "--temperature", "inf", "-o", str(d / "outdir")], None
+
+
+def in_seed_beyond_64_bits(d, m):
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--seed", str(2**70)], None
+
+
+def in_negative_seed(d, m):
+    return ["sample", "--seed", "-1", "-o", str(d / "outdir")], None
+
+
+def in_output_is_the_input(d, m):
+    return ["vectorize", png(d / "x.png"), "-o", str(d / "x.png")], None
+
+
+def in_output_is_the_input_through_a_link(d, m):
+    src = png(d / "x.png")
+    (d / "link.svg").symlink_to(src)
+    return ["vectorize", src, "-o", str(d / "link.svg")], None
+
+
+def in_output_is_the_input_hard_link(d, m):
+    src = png(d / "x.png")
+    os.link(src, d / "hard.svg")
+    return ["vectorize", src, "-o", str(d / "hard.svg")], None
+
+
+def in_empty_input_path(d, m):
+    return ["vectorize", "", "-o", str(d / "out.svg")], None
+
+
+def in_empty_output_path(d, m):
+    return ["vectorize", png(d / "a.png"), "-o", ""], None
+
+
+def in_interpolate_empty_second(d, m):
+    return ["interpolate", png(d / "a.png"), "", "-o", str(d / "outdir")], None
+
+
+def in_interpolate_onto_its_input(d, m):
+    (d / "outdir").mkdir()
+    src = png(d / "outdir" / "contact.png")
+    return ["interpolate", src, png(d / "b.png"), "-o", str(d / "outdir")], None
+
+
+def in_stdin_endless(d, m):
+    from im2vec_cli import files
+
+    return ["vectorize", "-", "-o", str(d / "out.svg")], b"\0" * (files.MAX_INPUT_BYTES + 1)
+
+
+def in_models_env_missing(d, m):
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--model", "fonts", "--env",
+            str(d / "no-such-folder")], None
+
+
+def _config(d, text):
+    (d / "c.json").write_text(text)
+    (d / "data").mkdir()
+    png(d / "data" / "a.png", 32, 32)
+    return ["train", str(d / "data"), "--config", str(d / "c.json"), "--out", str(d / "outrun")], None
+
+
+def in_config_null(d, m):
+    return _config(d, "null")
+
+
+def in_config_list(d, m):
+    return _config(d, "[1, 2, 3]")
+
+
+def in_config_model_not_object(d, m):
+    return _config(d, '{"model": [1]}')
+
+
+def in_config_segments_zero(d, m):
+    return _config(d, '{"model": {"segments": 0}}')
+
+
+def in_config_lr_negative(d, m):
+    return _config(d, '{"train": {"lr": -1}}')
+
+
+def in_model_config_null(d, m):
+    bad = d / "model"
+    shutil.copytree(m, bad)
+    (bad / "config.json").write_text("null")
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--model", str(bad)], None
+
+
+def in_model_config_out_of_range(d, m):
+    bad = d / "model"
+    shutil.copytree(m, bad)
+    cfg = json.loads((bad / "config.json").read_text())
+    cfg["paths"] = 0
+    (bad / "config.json").write_text(json.dumps(cfg))
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--model", str(bad)], None
 
 
 # name -> (builder, expected outcome, whether the command takes --model)
@@ -386,8 +546,40 @@ CASES = {
     "output folder missing": (in_output_parent_missing, "error"),
     "output path is a directory": (in_output_is_directory, "error"),
     "SVG: not XML": (in_render_not_xml, "error"),
-    "SVG: relative commands": (in_render_relative_commands, "error"),
-    "SVG: open path": (in_render_open_path, "error"),
+    "SVG: relative commands": (in_render_relative_commands, "png"),
+    "SVG: open path": (in_render_open_path, "png"),
+    "SVG: font outline (H V Q T S, relative)": (in_render_font_outline, "png"),
+    "SVG: stroke": (in_render_stroke, "error"),
+    "SVG: gradient fill": (in_render_gradient, "error"),
+    "SVG: text": (in_render_text, "error"),
+    "SVG: coordinates of 1e308": (in_render_huge_coordinates, "error"),
+    "SVG: 1,000,000 segments": (in_render_million_segments, "error"),
+    "SVG: viewBox of 100000 x 100000": (in_render_huge_viewbox, "error"),
+    "render --scale 1000": (in_render_scale_1000, "error"),
+    "render --scale nan": (in_render_scale_nan, "usage"),
+    "render --tau nan": (in_render_tau_nan, "usage"),
+    "render onto its input": (in_render_onto_its_input, "usage"),
+    "--quality nan": (in_quality_nan, "usage"),
+    "--simplify nan": (in_simplify_nan, "usage"),
+    "--temperature inf": (in_temperature_inf, "usage"),
+    "seed beyond 64 bits": (in_seed_beyond_64_bits, "usage"),
+    "negative seed": (in_negative_seed, "usage"),
+    "output is the input": (in_output_is_the_input, "usage"),
+    "output is the input (symlink)": (in_output_is_the_input_through_a_link, "usage"),
+    "output is the input (hard link)": (in_output_is_the_input_hard_link, "usage"),
+    "empty input path": (in_empty_input_path, "usage"),
+    "empty output path": (in_empty_output_path, "usage"),
+    "interpolate with an empty path": (in_interpolate_empty_second, "usage"),
+    "interpolate onto its input": (in_interpolate_onto_its_input, "usage"),
+    "stdin over 256 MiB": (in_stdin_endless, "error"),
+    "IM2VEC_MODELS missing": (in_models_env_missing, "error"),
+    "train config: null": (in_config_null, "error"),
+    "train config: a list": (in_config_list, "error"),
+    "train config: model section not an object": (in_config_model_not_object, "error"),
+    "train config: segments 0": (in_config_segments_zero, "error"),
+    "train config: negative lr": (in_config_lr_negative, "error"),
+    "model: config null": (in_model_config_null, "error"),
+    "model: config out of range": (in_model_config_out_of_range, "error"),
     "SVG: bad viewBox": (in_render_bad_viewbox, "error"),
     "unknown option": (in_unknown_option, "usage"),
     "--segments 0": (in_segments_zero, "usage"),
@@ -398,14 +590,26 @@ CASES = {
 
 
 def _invoke(args, stdin, model_dir):
-    if args[0] != "render" and "--model" not in args:
+    env = {}
+    if "--env" in args:  # IM2VEC_MODELS for this case
+        i = args.index("--env")
+        env, args = {"IM2VEC_MODELS": args[i + 1]}, args[:i] + args[i + 2:]
+    if args[0] not in ("render", "train") and "--model" not in args:
         args = args + ["--model", model_dir]
-    return CliRunner().invoke(cli, args, input=stdin)
+    return CliRunner().invoke(cli, args, input=stdin, env=env)
 
 
 def _no_output(d: Path):
     leftovers = [p.name for p in d.rglob("*") if p.name.startswith(("out", ".out", ".x")) and p.is_file()]
     assert not leftovers, f"partial output left behind: {leftovers}"
+
+
+def _inputs_untouched(d: Path):
+    """Every input PNG the case made is still a PNG (an output never replaced it)."""
+    for p in d.rglob("*"):
+        if p.is_file() and p.suffix in (".png", ".svg") and not p.name.startswith("out"):
+            head = p.read_bytes()[:8]
+            assert head == b"\x89PNG\r\n\x1a\n" or head.startswith(b"<svg"), f"{p.name} was overwritten"
 
 
 def _one_error_line(stderr: str):
@@ -432,6 +636,11 @@ def test_bad_input_table(tmp_path, model_dir, name):
         assert res.exit_code == 2, (res.exit_code, res.output)
         _one_error_line(res.stderr)
         _no_output(d)
+        _inputs_untouched(d)
+    elif expect == "png":
+        assert res.exit_code == 0, res.output
+        with Image.open(d / "out.png") as im:
+            assert im.size == (10, 10) and np.asarray(im.convert("L")).min() < 128  # something was drawn
     else:
         assert res.exit_code == 0, res.output
         svg = (d / "out.svg").read_text()
@@ -453,8 +662,8 @@ def test_all_black_is_one_canvas_square(tmp_path, model_dir):
     assert img.max() < 0.01  # every pixel black, as in the input
 
 
-def test_there_are_at_least_30_kinds():
-    assert len(CASES) >= 30
+def test_there_are_at_least_70_kinds():
+    assert len(CASES) >= 70
 
 
 def test_read_only_output_folder(tmp_path, model_dir, monkeypatch):
@@ -580,3 +789,93 @@ def test_outputs_get_the_usual_file_mode(tmp_path):
     finally:
         os.umask(old)
     assert (tmp_path / "a.svg").stat().st_mode & 0o777 == 0o644
+
+
+def test_clashing_names_keep_their_extensions(tmp_path, model_dir):
+    d = tmp_path / "in"
+    d.mkdir()
+    for name in ("x.png", "x.jpg", "x.PNG", "y.png"):
+        Image.open(png(tmp_path / "src.png")).convert("RGB").save(d / name, format="JPEG" if name.endswith("jpg") else "PNG")
+    res = CliRunner().invoke(cli, ["vectorize", str(d), "-o", str(tmp_path / "out"), "--model", model_dir])
+    assert res.exit_code == 0, res.output
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["x.PNG.svg", "x.jpg.svg", "x.png.svg", "y.svg"]
+    assert sum(line.startswith("Warning:") for line in res.stderr.splitlines()) == 1 and "x.jpg" in res.stderr
+
+
+def test_longest_legal_name_is_writable(tmp_path, model_dir):
+    name = "g" * 251 + ".svg"  # 255 bytes: the longest name this file system takes
+    res = CliRunner().invoke(cli, ["vectorize", png(tmp_path / "a.png"), "-o", str(tmp_path / name), "--no-refine",
+                                   "--model", model_dir])
+    assert res.exit_code == 0, res.output
+    check_svg((tmp_path / name).read_text(), 40, 24)
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+
+
+@pytest.mark.parametrize("refine", ["--refine", "--no-refine"])
+def test_interrupt_keeps_exactly_the_finished_svgs(tmp_path, model_dir, monkeypatch, refine):
+    """Ctrl-C after 5 images (of 40; chunks of 32 without refinement): every finished SVG is
+    on disk and complete, nothing else is, and the exit code is 130."""
+    import im2vec_cli.api as api
+    import im2vec_cli.cli.convert as convert
+
+    d = tmp_path / "in"
+    d.mkdir()
+    for i in range(40):
+        png(d / f"{i:02d}.png")
+    monkeypatch.setattr(convert, "VECTORIZE_CHUNK", 5)
+    real, done = api.vectorize, []
+
+    def interrupted(images, *a, **kw):
+        if len(done) >= 5:
+            raise KeyboardInterrupt
+        out = real(images, *a, **kw)
+        done.extend(out if isinstance(out, list) else [out])
+        return out
+
+    monkeypatch.setattr(api, "vectorize", interrupted)
+    res = CliRunner().invoke(cli, ["vectorize", str(d), "-o", str(tmp_path / "out"), refine, "--model", model_dir])
+    assert res.exit_code == 130, res.output
+    written = sorted((tmp_path / "out").iterdir())
+    assert [p.name for p in written] == [f"{i:02d}.svg" for i in range(5)]
+    for p in written:
+        check_svg(p.read_text(), 40, 24)
+
+
+def test_resource_bounds_under_a_memory_limit(tmp_path):
+    """Endless stdin, a huge render and a huge SVG, as real processes limited to 4 GiB of
+    address space: each is refused with one error line (before the fixes: 20 GB resident,
+    the kernel's OOM killer, and minutes with no output)."""
+    import resource
+
+    (tmp_path / "t.svg").write_text('<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 64 64">'
+                                    '<path d="M 1 1 L 60 1 L 30 60 Z"/></svg>')
+    (tmp_path / "big.svg").write_text('<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 64 64"><path d="M 1 1 '
+                                      + "L 2 2 L 1 1 " * 500_000 + 'Z"/></svg>')
+    limit = 4 * 2**30
+    cases = [(["vectorize", "-", "-o", str(tmp_path / "out.svg")], "/dev/zero", "more than 256 MiB"),
+             (["render", str(tmp_path / "t.svg"), "--scale", "1000", "-o", str(tmp_path / "out.png")], None,
+              "megapixels"),
+             (["render", str(tmp_path / "big.svg"), "-o", str(tmp_path / "out.png")], None, "segments")]
+    for args, stdin, message in cases:
+        with open(stdin or os.devnull, "rb") as f:
+            r = subprocess.run([sys.executable, "-m", "im2vec_cli", *args], stdin=f, capture_output=True, text=True,
+                               timeout=300, preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_AS, (limit, limit)))
+        assert r.returncode == 1, (args, r.stderr[-500:])
+        assert r.stderr.count("Error:") == 1 and message in r.stderr and "Traceback" not in r.stderr, r.stderr
+    assert not list(tmp_path.glob("out*")) and not list(tmp_path.glob(".out*"))
+
+
+def test_sample_streams_and_bounds_the_contact_sheet(tmp_path, model_dir, monkeypatch):
+    import im2vec_cli.cli.generate as generate
+
+    monkeypatch.setattr(generate, "DECODE_CHUNK", 7)
+    monkeypatch.setattr(generate, "CONTACT_MAX", 10)
+    res = CliRunner().invoke(cli, ["sample", "--n", "30", "-o", str(tmp_path / "s"), "--model", model_dir])
+    assert res.exit_code == 0, res.output
+    assert len(list((tmp_path / "s").glob("sample_*.svg"))) == 30
+    with Image.open(tmp_path / "s" / "contact.png") as sheet:
+        assert sheet.size == (8 * 96, 2 * 96)  # the first 10 samples: two rows of 8 cells
+    whole = CliRunner().invoke(cli, ["sample", "--n", "30", "-o", str(tmp_path / "t"), "--model", model_dir])
+    assert whole.exit_code == 0
+    for p in (tmp_path / "s").glob("sample_*.svg"):  # chunking changes nothing
+        assert p.read_bytes() == (tmp_path / "t" / p.name).read_bytes()

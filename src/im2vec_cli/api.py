@@ -30,7 +30,7 @@ from .raster import compiling
 from .runtime import resolve_device
 from .vector import VectorImage, simplify
 
-__all__ = ["decode", "encode", "interpolate", "load_model", "sample", "vectorize"]
+__all__ = ["decode", "encode", "interpolate", "load_model", "prior_latents", "sample", "vectorize"]
 
 
 def load_model(name_or_dir: str = DEFAULT_MODEL, device: str | torch.device = "auto"):
@@ -108,14 +108,20 @@ def decode(z, model=DEFAULT_MODEL, *, segments: int | None = None, keep_all: boo
     return infer.decode(model, _latents(z, model), segments=segments, keep_all=keep_all)
 
 
-def sample(n: int, model=DEFAULT_MODEL, *, seed: int = 0, temperature: float = 1.0,
-           segments: int | None = None) -> list[VectorImage]:
-    """``n`` new graphics: latents drawn from N(0, temperature^2 I) (seeded), decoded."""
+def prior_latents(n: int, model=DEFAULT_MODEL, *, seed: int = 0, temperature: float = 1.0) -> np.ndarray:
+    """``n`` latents drawn from N(0, temperature^2 I), seeded: ``(n, D)`` float32."""
     model = _model(model)
     if n < 1:
         raise ValueError(f"n must be >= 1, got {n}")
     z = torch.randn(n, model.config.latent, generator=torch.Generator().manual_seed(seed)) * temperature
-    return infer.decode(model, z, segments=segments)
+    return z.numpy()
+
+
+def sample(n: int, model=DEFAULT_MODEL, *, seed: int = 0, temperature: float = 1.0,
+           segments: int | None = None) -> list[VectorImage]:
+    """``n`` new graphics: ``prior_latents`` decoded."""
+    model = _model(model)
+    return decode(prior_latents(n, model, seed=seed, temperature=temperature), model, segments=segments)
 
 
 def interpolate(a, b, model=DEFAULT_MODEL, *, steps: int = 4, segments: int | None = None,

@@ -7,11 +7,13 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, get_type_hints
 
-from .errors import Im2VecError
+from .errors import ConfigError, Im2VecError
+from .frame import FITS
 
 FORMAT_VERSION = 1
 PYRAMID_MODES = ("blur", "render")  # TrainConfig.pyramid: the coarse levels of the loss (raster.render_pyramid)
@@ -61,9 +63,16 @@ class _Config:
             raise Im2VecError(f"{path}: no such file") from None
         except (json.JSONDecodeError, UnicodeDecodeError) as exc:
             raise Im2VecError(f"{path}: not valid JSON ({exc})") from None
+        except OSError as exc:
+            raise Im2VecError(f"{path}: cannot read ({exc.strerror or exc})") from None
+        if not isinstance(data, dict):
+            raise Im2VecError(f"{path}: expected a JSON object, got {type(data).__name__}")
         if data.get("format_version", FORMAT_VERSION) != FORMAT_VERSION:
             raise Im2VecError(f"{path}: config format version {data.get('format_version')} is not {FORMAT_VERSION}")
-        return cls.from_dict(data)
+        try:
+            return cls.from_dict(data)
+        except Im2VecError as exc:
+            raise Im2VecError(f"{path}: {exc}") from None
 
 
 @dataclass(frozen=True)
@@ -91,6 +100,21 @@ class ModelConfig(_Config):
     samples: int = 4  # lines per cubic when rasterising
     levels: int = 3  # Gaussian pyramid levels of the loss (eq. 1)
     segment_predictor: int = 0  # hidden width of the segment-count MLP (sec. 3.3); 0: none (`im2vec train-aux` adds it)
+
+    def __post_init__(self):
+        """Values no model can be built with are refused here (one line naming the key)."""
+        at_least = {"image_size": 8, "channels": 1, "latent": 1, "paths": 1, "enc_width": 8, "lstm_hidden": 1,
+                    "code": 1, "dec_width": 1, "dec_layers": 1, "deform_width": 1, "segments": 1, "min_segments": 1,
+                    "max_segments": 1, "samples": 1, "levels": 1, "segment_predictor": 0}
+        for key, low in at_least.items():
+            if getattr(self, key) < low:
+                raise ConfigError(f"ModelConfig.{key} must be >= {low}, got {getattr(self, key)}")
+        if self.min_segments > self.max_segments:
+            raise ConfigError(f"ModelConfig.min_segments ({self.min_segments}) is above max_segments ({self.max_segments})")
+        for key, allowed in (("arch", ("im2vec", "imagevae")), ("fit", FITS),
+                             ("grouping", ("evenodd", "layers"))):
+            if getattr(self, key) not in allowed:
+                raise ConfigError(f"ModelConfig.{key} must be one of {allowed}, got {getattr(self, key)!r}")
 
 
 @dataclass(frozen=True)
@@ -121,9 +145,19 @@ class TrainConfig(_Config):
 
     def __post_init__(self):
         """Values a run cannot use are refused here, before any data loads."""
+        for key in ("steps", "batch", "beta_warmup", "lookahead_k", "val_every", "ckpt_every", "preview_every",
+                    "workers", "log_every"):
+            if getattr(self, key) < 1:
+                raise ConfigError(f"TrainConfig.{key} must be >= 1, got {getattr(self, key)}")
+        for key in ("lr", "beta", "grad_clip", "lookahead_alpha", "tau_start", "tau_end", "lr_final", "val_fraction"):
+            v = getattr(self, key)
+            if not (math.isfinite(v) and v >= 0):
+                raise ConfigError(f"TrainConfig.{key} must be a finite number >= 0, got {v}")
+        if not 0 <= self.seed < 2**32:
+            raise ConfigError(f"TrainConfig.seed must be in [0, 2^32), got {self.seed}")
         if self.supersample < 1:
-            raise Im2VecError(f"TrainConfig.supersample must be >= 1, got {self.supersample}")
+            raise ConfigError(f"TrainConfig.supersample must be >= 1, got {self.supersample}")
         if self.pyramid not in PYRAMID_MODES:
-            raise Im2VecError(f"TrainConfig.pyramid must be one of {PYRAMID_MODES}, got {self.pyramid!r}")
+            raise ConfigError(f"TrainConfig.pyramid must be one of {PYRAMID_MODES}, got {self.pyramid!r}")
         if not 0.0 <= self.ema < 1.0:
-            raise Im2VecError(f"TrainConfig.ema must be in [0, 1), got {self.ema}")
+            raise ConfigError(f"TrainConfig.ema must be in [0, 1), got {self.ema}")

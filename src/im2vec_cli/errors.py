@@ -19,3 +19,7 @@ class DataError(Im2VecError):
 
 class TrainingError(Im2VecError):
     """Training cannot go on (e.g. the loss stays non-finite)."""
+
+
+class ConfigError(Im2VecError, ValueError):
+    """A configuration value no model or run can use (also a ``ValueError``, for programmers)."""

@@ -68,7 +68,7 @@ def reconstruction_l2(
             if outlines and truth.is_file():
                 try:
                     ref = from_svg(truth.read_bytes())
-                except InputError:  # an outline our reader does not take (e.g. relative commands)
+                except InputError:  # an outline the reader refuses (e.g. strokes, gradients)
                     unread += 1
                     continue
                 ious.append(outline_iou(svg_mask(to_svg(vec), 4 * w, 4 * h), svg_mask(to_svg(ref), 4 * w, 4 * h)))

@@ -20,6 +20,8 @@ from .errors import InputError
 
 MAX_PIXELS = 64_000_000  # larger images are refused (decompression bombs)
 MIN_SIDE = 4  # smaller images carry no shape to vectorize
+MAX_INPUT_BYTES = 256 * 2**20  # larger input files (and stdin) are refused while reading: 64 MP as PNG fits
+NAME_MAX = 255  # bytes in a file name (Linux, macOS, Windows)
 
 
 def atomic_write(path: str | os.PathLike, data: bytes | str, *, durable: bool = True) -> None:
@@ -28,7 +30,9 @@ def atomic_write(path: str | os.PathLike, data: bytes | str, *, durable: bool = 
     path = Path(path)
     raw = data.encode("utf-8") if isinstance(data, str) else data
     directory = path.parent if str(path.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+    # ".NAME.XXXXXXXX.tmp": keep the temp name within NAME_MAX whatever the target's length
+    stem = os.fsdecode(os.fsencode(path.name)[: NAME_MAX - 16])
+    fd, tmp = tempfile.mkstemp(prefix=f".{stem}.", suffix=".tmp", dir=directory)
     try:
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600 files; outputs get the usual mode
         with os.fdopen(fd, "wb") as f:
@@ -123,10 +127,26 @@ def image_to_tensor(img: Image.Image) -> torch.Tensor:
     return out.permute(2, 0, 1).contiguous()  # (3, H, W)
 
 
-def read_file(path: str | os.PathLike) -> bytes:
-    """The bytes of a file; a missing, unreadable or directory path is a one-line ``InputError``."""
+def read_capped(stream, name: str, limit: int = MAX_INPUT_BYTES) -> bytes:
+    """Read a binary stream to its end, refusing it (``InputError``) as soon as it passes
+    ``limit`` bytes: memory stays bounded on ``/dev/zero`` or an endless pipe."""
+    chunks, size = [], 0
+    while True:
+        chunk = stream.read(min(2**20, limit + 1 - size))
+        if not chunk:
+            return b"".join(chunks)
+        chunks.append(chunk)
+        size += len(chunk)
+        if size > limit:
+            raise InputError(f"{name}: more than {limit // 2**20} MiB (an image that large is refused)")
+
+
+def read_file(path: str | os.PathLike, limit: int = MAX_INPUT_BYTES) -> bytes:
+    """The bytes of a file (at most ``limit``); a missing, unreadable, directory or oversized
+    path is a one-line ``InputError``."""
     try:
-        return Path(path).read_bytes()
+        with open(path, "rb") as f:
+            return read_capped(f, str(path), limit)
     except FileNotFoundError:
         raise InputError(f"{path}: no such file") from None
     except IsADirectoryError:

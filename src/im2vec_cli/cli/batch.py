@@ -10,7 +10,6 @@ from pathlib import Path
 import click
 
 from ..errors import DataError, Im2VecError
-from .streams import make_folder
 
 Item = tuple[str, "Path | None"]  # (input path or "-", the folder it was found in, or None)
 
@@ -61,7 +60,7 @@ def expand_inputs(inputs: Iterable[str]) -> list[Item]:
     return out
 
 
-def output_for(item: str, root: Path | None, output: str, suffix: str, single: bool) -> str:
+def _destination(item: str, root: Path | None, output: str, suffix: str, single: bool) -> str:
     """Where the result of one input goes: the file (or stdout) itself for a single input,
     else ``OUT/<name><suffix>`` (``OUT/<path under the folder>`` for inputs found in a folder)."""
     if single:
@@ -69,11 +68,52 @@ def output_for(item: str, root: Path | None, output: str, suffix: str, single: b
             return str(Path(output) / ((Path(item).stem if item != "-" else "stdin") + suffix))
         return output
     if root is not None:
-        dest = Path(output) / Path(item).relative_to(root).with_suffix(suffix)
-    else:
-        dest = Path(output) / (Path(item).stem + suffix)
-    make_folder(dest.parent)
-    return str(dest)
+        return str(Path(output) / Path(item).relative_to(root).with_suffix(suffix))
+    return str(Path(output) / (Path(item).stem + suffix))
+
+
+def plan_outputs(items: list[Item], output: str, suffix: str, single: bool) -> tuple[list[str], list[str]]:
+    """The output of every input, decided before anything is written.
+
+    Two inputs never share an output: where they would (``x.png`` and ``x.jpg`` -> ``x.svg``),
+    each keeps its extension in the name (``x.png.svg``, ``x.jpg.svg``) and a note says so.
+    An output that is one of the inputs (the same path, or the same file through a link) is
+    refused (``refuse_overwrite``).
+
+    Returns:
+        The outputs, in the order of ``items``, and the notes to show.
+    """
+    dests = [_destination(item, root, output, suffix, single) for item, root in items]
+    groups: dict[str, list[int]] = {}
+    for i, d in enumerate(dests):
+        groups.setdefault(d, []).append(i)
+    notes = []
+    for d, idx in groups.items():
+        if len(idx) > 1 and d != "-":
+            for i in idx:
+                dests[i] = str(Path(d).with_name(Path(items[i][0]).name + suffix))
+            notes.append(f"{', '.join(items[i][0] for i in idx)} would all be written to {d}; "
+                         f"written as {', '.join(Path(dests[i]).name for i in idx)}")
+    if len(set(dests) - {"-"}) < len([d for d in dests if d != "-"]):
+        raise Im2VecError("two inputs would be written to the same output even with their extensions kept; "
+                          "rename one of them")
+    refuse_overwrite(dests, [item for item, _ in items])
+    return dests, notes
+
+
+def refuse_overwrite(outputs: Iterable[str | Path], inputs: Iterable[str | Path]) -> None:
+    """A usage error if an output would replace an input (same path, or same file through a link)."""
+    import os
+
+    ins = [(str(i), os.path.realpath(i)) for i in inputs if str(i) not in ("-", "")]
+    for out in outputs:
+        if str(out) == "-":
+            continue
+        real = os.path.realpath(out)
+        for name, real_in in ins:
+            same = real == real_in or (os.path.exists(out) and os.path.exists(name) and os.path.samefile(out, name))
+            if same:
+                raise click.UsageError(f"the output {out} is the input {name}: refusing to overwrite an input")
 
 
 Work = Callable[[list[Item]], Iterator[tuple[str, "Im2VecError | None"]]]

@@ -5,12 +5,13 @@ from __future__ import annotations
 import click
 
 from ..errors import Im2VecError
-from .app import EXIT_HELP, cli
-from .batch import each, expand_inputs, output_for, run_batch
-from .options import load_model, model_options, nonempty, parse_segments
-from .streams import load_input_image, make_folder, read_input, write_output
+from .app import EXIT_HELP, cli, warn
+from .batch import each, expand_inputs, plan_outputs, refuse_overwrite, run_batch
+from .options import Finite, load_model, model_options, nonempty, parse_segments
+from .streams import load_input_image, read_input, write_output
 
 VECTORIZE_CHUNK = 32  # images per forward pass in batch mode (bounded memory, amortised model calls)
+MAX_SVG_BYTES = 32 * 2**20  # `render` input: an SVG larger than this is refused while reading
 EFFORTS = ["fast", "best"]  # refine.EFFORTS, spelled out so that `--help` does not import torch
 
 
@@ -20,7 +21,7 @@ EFFORTS = ["fast", "best"]  # refine.EFFORTS, spelled out so that `--help` does 
               help="SVG file or - for one input; a folder for several inputs or a folder input.")
 @click.option("--segments", default=None, help="Cubic segments per path (default: the model's).")
 @click.option("--paths", "max_paths", type=click.IntRange(1), default=None, help="Keep at most N paths (the largest).")
-@click.option("--quality", type=click.FloatRange(0, min_open=True), default=None,
+@click.option("--quality", type=Finite(0, min_open=True), default=None,
               help="With --segments auto: the error one more segment must remove to be added (MSE on coverage) "
                    "[5e-4]; smaller is more exact, larger more compact.")
 @click.option("--refine/--no-refine", default=None,
@@ -29,7 +30,7 @@ EFFORTS = ["fast", "best"]  # refine.EFFORTS, spelled out so that `--help` does 
 @click.option("--effort", type=click.Choice(EFFORTS), default="fast", show_default=True,
               help="With refinement: fast (0.3-0.5 s per 64 px glyph on a CPU) or best (about 1 s, "
                    "half the pixel error).")
-@click.option("--simplify", "simplify_px", type=click.FloatRange(0), default=None,
+@click.option("--simplify", "simplify_px", type=Finite(0), default=None,
               help="Merge segments while the outline moves less than this many input pixels. [0.25 with --refine, else 0]")
 @model_options
 @click.pass_context
@@ -49,27 +50,37 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, refine, effort,
     single = len(items) == 1 and items[0][1] is None
     if not single and output == "-":
         raise click.UsageError("several inputs need -o DIR")
+    dests, notes = plan_outputs(items, output, ".svg", single)
     model = load_model(model_name, device, seed)
     options = {"refine": single if refine is None else refine, "effort": effort, "segments": k, "quality": quality,
                "max_paths": max_paths, "simplify_px": simplify_px}
     if k == "auto" and model.segment_predictor is None:  # before any file is read
         raise Im2VecError(f"model {model_name!r} has no segment predictor for --segments auto "
                           "(add one with `im2vec train-aux`)")
+    for note in notes:
+        warn(note)
+    where = dict(zip((item for item, _ in items), dests))
+
+    def write(item, vec):
+        try:
+            write_output(where[item], vec.to_svg(), parents=not single)
+            return item, None
+        except Im2VecError as exc:
+            return item, exc
 
     def work(group):
         loaded = []
-        for item, root in group:
+        for item, _root in group:
             try:
-                loaded.append((item, root, load_input_image(item)))
+                loaded.append((item, load_input_image(item)))
             except Im2VecError as exc:
                 yield item, exc
-        vecs = api.vectorize([img for _, _, img in loaded], model, **options) if loaded else []
-        for (item, root, _), vec in zip(loaded, vecs):
-            try:
-                write_output(output_for(item, root, output, ".svg", single), vec.to_svg())
-                yield item, None
-            except Im2VecError as exc:
-                yield item, exc
+        if options["refine"]:  # minutes per chunk: write each image as it is done
+            for item, img in loaded:
+                yield write(item, api.vectorize(img, model, **options))
+        elif loaded:  # one batched forward pass per chunk
+            for (item, _), vec in zip(loaded, api.vectorize([img for _, img in loaded], model, **options)):
+                yield write(item, vec)
 
     run_batch(ctx, items, work, chunk=VECTORIZE_CHUNK)
 
@@ -96,13 +107,20 @@ def encode(ctx, inputs, output, fmt, model_name, device, seed):
     model = load_model(model_name, device, seed)
     lines = []
 
+    if fmt == "npy":
+        dests, notes = plan_outputs([(i if i != "-" else "stdin.png", r) for i, r in items], output, ".npy", False)
+        where = dict(zip((item for item, _ in items), dests))
+        for note in notes:
+            warn(note)
+    else:
+        refuse_overwrite([output], [item for item, _ in items])
+
     def work(item, root):
         z = api.encode(load_input_image(item), model)[0]  # (D,)
         if fmt == "npy":
-            make_folder(output)
             buf = io.BytesIO()
             np.save(buf, z)
-            write_output(output_for(item if item != "-" else "stdin.png", root, output, ".npy", False), buf.getvalue())
+            write_output(where[item], buf.getvalue(), parents=True)
         else:
             lines.append(json.dumps({"file": item, "model": getattr(model, "name", model_name),
                                      "latent": [round(v, 6) for v in z.tolist()]}))
@@ -117,14 +135,15 @@ def encode(ctx, inputs, output, fmt, model_name, device, seed):
 @cli.command(epilog=EXIT_HELP)
 @click.argument("svg_file", metavar="SVG", callback=nonempty)
 @click.option("-o", "--output", default="-", show_default=True, callback=nonempty, help="PNG file, or - for stdout.")
-@click.option("--scale", type=click.FloatRange(min=0, min_open=True), default=1.0, show_default=True,
+@click.option("--scale", type=Finite(min=0, min_open=True), default=1.0, show_default=True,
               help="Output pixels per viewBox unit.")
-@click.option("--tau", type=click.FloatRange(min=0, min_open=True), default=0.15, show_default=True,
+@click.option("--tau", type=Finite(min=0, min_open=True), default=0.15, show_default=True,
               help="Edge softness in output pixels.")
 def render(svg_file, output, scale, tau):
     """Render an SVG of closed cubic paths to PNG with im2vec's own differentiable rasterizer."""
     from ..files import tensor_to_png
     from ..vector import from_svg, render_vector
 
-    image = from_svg(read_input(svg_file))
+    refuse_overwrite([output], [svg_file])
+    image = from_svg(read_input(svg_file, limit=MAX_SVG_BYTES))
     write_output(output, tensor_to_png(render_vector(image, scale=scale, tau=tau)))

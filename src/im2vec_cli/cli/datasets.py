@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from .app import EXIT_HELP, cli
+from .options import Finite
 
 
 @cli.group(epilog=EXIT_HELP)
@@ -17,7 +18,7 @@ def data():
 @click.option("--fonts", "fonts", multiple=True, help="Font files or folders (default: the system's fonts).")
 @click.option("--chars", default=None, help="Characters to render (default a-z, A-Z, 0-9).")
 @click.option("--size", type=click.IntRange(8), default=64, show_default=True)
-@click.option("--margin", type=click.FloatRange(0), default=4.0, show_default=True, help="Margin in pixels.")
+@click.option("--margin", type=Finite(0), default=4.0, show_default=True, help="Margin in pixels.")
 @click.option("--workers", type=click.IntRange(1), default=2, show_default=True)
 def data_fonts(out, fonts, chars, size, margin, workers):
     """Glyph PNGs with their exact outlines as SVG, split by font family.

@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from .app import EXIT_HELP, cli, warn
-from .options import load_model, model_options, parse_segments, parse_sweep
+from .options import load_model, model_options, nonempty, parse_segments, parse_sweep
 from .streams import write_output
 
 
@@ -41,7 +41,7 @@ def _sweeps(model, files, ks) -> dict:
 @click.option("--samples", type=click.IntRange(1), default=1000, show_default=True, help="Prior samples (generation).")
 @click.option("--pairs", type=click.IntRange(1), default=250, show_default=True, help="Training pairs (interpolation).")
 @click.option("--segments", default=None, help="Cubic segments per path (default: the model's).")
-@click.option("-o", "--output", default="-", show_default=True, help="JSON file or -.")
+@click.option("-o", "--output", default="-", show_default=True, callback=nonempty, help="JSON file or -.")
 @click.option("--markdown", default=None, help="Also write the figures as a markdown table to this file.")
 @click.option("--sweep", default=None, metavar="K1-K2",
               help="Segments ablation (paper Fig. 5): reconstruction L2 at every k in K1..K2, with the sample "

@@ -6,7 +6,8 @@ import click
 
 from ..errors import Im2VecError
 from .app import EXIT_HELP, cli
-from .options import load_model, model_options, nonempty, parse_segments
+from .batch import refuse_overwrite
+from .options import Finite, load_model, model_options, nonempty, parse_segments
 from .streams import load_input_image, make_folder, write_output
 
 
@@ -14,27 +15,38 @@ from .streams import load_input_image, make_folder, write_output
 @click.option("--n", "count", type=click.IntRange(1, 10000), default=16, show_default=True, help="How many samples.")
 @click.option("-o", "--output", default="samples", show_default=True, callback=nonempty, help="Output folder.")
 @click.option("--segments", default=None, help="Cubic segments per path (default: the model's).")
-@click.option("--temperature", type=click.FloatRange(0), default=1.0, show_default=True, help="Prior std scale.")
+@click.option("--temperature", type=Finite(0), default=1.0, show_default=True, help="Prior std scale.")
 @model_options
 def sample(count, output, segments, temperature, model_name, device, seed):
     """Decode N latents drawn from the prior (seeded) into SVGs, plus contact.png."""
     from .. import api
 
     model = load_model(model_name, device, seed)
-    images = api.sample(count, model, seed=seed, temperature=temperature, segments=parse_segments(segments))
-    write_set(output, "sample", images)
+    k = parse_segments(segments)
+    z = api.prior_latents(count, model, seed=seed, temperature=temperature)
+    chunks = (api.decode(z[i : i + DECODE_CHUNK], model, segments=k) for i in range(0, count, DECODE_CHUNK))
+    write_set(output, "sample", (im for chunk in chunks for im in chunk), count)
 
 
-def write_set(output: str, stem: str, images) -> None:
-    """``OUT/<stem>_<i>.svg`` for each image, and ``OUT/contact.png``."""
+DECODE_CHUNK = 256  # latents decoded at once: memory stays flat in --n
+CONTACT_MAX = 64  # images on a contact sheet (the first ones): its size stays bounded
+
+
+def write_set(output: str, stem: str, images, count: int) -> None:
+    """``OUT/<stem>_<i>.svg`` for each of ``count`` images, written as they come, and
+    ``OUT/contact.png`` of the first ``CONTACT_MAX``."""
     from ..vector import contact_sheet
 
     out = make_folder(output)
-    width = len(str(len(images) - 1))
+    width = len(str(count - 1))
+    first = []
     for i, im in enumerate(images):
         write_output(out / f"{stem}_{i:0{width}d}.svg", im.to_svg())
-    write_output(out / "contact.png", contact_sheet(images))
-    click.echo(f"wrote {len(images)} SVGs and contact.png to {out}/", err=True)
+        if i < CONTACT_MAX:
+            first.append(im)
+    write_output(out / "contact.png", contact_sheet(first))
+    shown = f" (the first {CONTACT_MAX})" if count > CONTACT_MAX else ""
+    click.echo(f"wrote {count} SVGs and contact.png{shown} to {out}/", err=True)
 
 
 def latent_from(model, item: str):
@@ -85,10 +97,12 @@ def interpolate(a, b, steps, output, segments, animate, model_name, device, seed
     from .. import api
     from ..vector import animated_svg
 
+    names = [f"frame_{i:0{len(str(steps + 1))}d}.svg" for i in range(steps + 2)] + ["contact.png", "morph.svg"]
+    refuse_overwrite([Path(output) / n for n in names], [a, b])
     model = load_model(model_name, device, seed)
     za, zb = latent_from(model, a), latent_from(model, b)
     k = parse_segments(segments)
-    write_set(output, "frame", api.interpolate(za, zb, model, steps=steps, segments=k))
+    write_set(output, "frame", api.interpolate(za, zb, model, steps=steps, segments=k), steps + 2)
     if animate:
         full = api.interpolate(za, zb, model, steps=steps, segments=k, keep_all=True)
         write_output(Path(output) / "morph.svg", animated_svg(full))

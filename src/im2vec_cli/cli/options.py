@@ -11,7 +11,7 @@ def device_option(f):
 
 def model_options(f):
     """``--model``, ``--device`` and ``--seed``."""
-    f = click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")(f)
+    f = click.option("--seed", type=SEED, default=0, show_default=True, help="Random seed.")(f)
     f = device_option(f)
     f = click.option("--model", "model_name", default="fonts", show_default=True,
                      help="Shipped model name (see models/) or a directory written by `train`.")(f)
@@ -60,3 +60,20 @@ def nonempty(ctx, param, value):
     if any(v == "" for v in values):
         raise click.BadParameter("is empty (give a file name, or - for stdin/stdout)", ctx=ctx, param=param)
     return value
+
+
+class Finite(click.FloatRange):
+    """``click.FloatRange`` that also refuses NaN and infinities (which pass any range check)."""
+
+    name = "finite float"
+
+    def convert(self, value, param, ctx):
+        import math
+
+        rv = super().convert(value, param, ctx)
+        if not math.isfinite(rv):
+            self.fail(f"{value!r} is not a finite number", param, ctx)
+        return rv
+
+
+SEED = click.IntRange(0, 2**32 - 1)  # every RNG takes it (NumPy's is 32-bit); larger seeds are usage errors

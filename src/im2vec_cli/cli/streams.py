@@ -12,21 +12,19 @@ from pathlib import Path
 from ..errors import Im2VecError
 
 
-def stdin_bytes() -> bytes:
-    """All of stdin; a closed or unreadable stdin is one error line."""
+def read_input(path: str, limit: int | None = None) -> bytes:
+    """The bytes of a file, or of stdin for ``-`` (at most ``limit``, default ``files.MAX_INPUT_BYTES``)."""
+    from ..files import MAX_INPUT_BYTES, read_capped, read_file
+
+    limit = limit or MAX_INPUT_BYTES
+    if path != "-":
+        return read_file(path, limit)
     if sys.stdin is None or sys.stdin.closed:
         raise Im2VecError("stdin is closed")
     try:
-        return sys.stdin.buffer.read()
+        return read_capped(sys.stdin.buffer, "stdin", limit)
     except (OSError, ValueError) as exc:
         raise Im2VecError(f"stdin: cannot read ({getattr(exc, 'strerror', None) or exc})") from None
-
-
-def read_input(path: str) -> bytes:
-    """The bytes of a file, or of stdin for ``-``."""
-    from ..files import read_file
-
-    return stdin_bytes() if path == "-" else read_file(path)
 
 
 def load_input_image(item: str):
@@ -34,7 +32,7 @@ def load_input_image(item: str):
     from ..files import load_image
 
     if item == "-":
-        return load_image("<stdin>", stdin_bytes())
+        return load_image("<stdin>", read_input("-"))
     return load_image(item)
 
 
@@ -57,14 +55,17 @@ def write_stdout(raw: bytes) -> None:
         raise Im2VecError(f"stdout: cannot write ({why})") from None
 
 
-def write_output(path: str | os.PathLike, data: bytes | str) -> None:
-    """Write to stdout for ``-``, else atomically; a failed write is one ``Im2VecError`` line."""
+def write_output(path: str | os.PathLike, data: bytes | str, *, parents: bool = False) -> None:
+    """Write to stdout for ``-``, else atomically (creating the folders above it with
+    ``parents``); a failed write is one ``Im2VecError`` line."""
     from ..files import atomic_write
 
     raw = data.encode("utf-8") if isinstance(data, str) else data
     if str(path) == "-":
         write_stdout(raw)
         return
+    if parents:
+        make_folder(Path(path).parent)
     try:
         atomic_write(path, raw)
     except OSError as exc:

@@ -6,7 +6,7 @@ import click
 
 from ..errors import Im2VecError
 from .app import EXIT_HELP, cli, warn
-from .options import device_option, load_model, model_options
+from .options import SEED, Finite, device_option, load_model, model_options, nonempty
 
 
 def _configs(config_file, model_opts: dict, train_opts: dict):
@@ -68,7 +68,7 @@ class _Progress:
 
 @cli.command(epilog=EXIT_HELP)
 @click.argument("data_dir", type=click.Path(file_okay=False))
-@click.option("--out", "run_dir", default="runs/latest", show_default=True, help="Run directory.")
+@click.option("--out", "run_dir", default="runs/latest", show_default=True, callback=nonempty, help="Run directory.")
 @click.option("--val", "val_dir", default=None, help="Validation folder (default: DATA_DIR/val, or a split).")
 @click.option("--config", "config_file", default=None, type=click.Path(dir_okay=False),
               help="JSON with 'model' and/or 'train' sections (options below override it).")
@@ -81,10 +81,10 @@ class _Progress:
               help="evenodd: one shape of all paths (glyphs, digits); layers: one coloured layer per path. [evenodd]")
 @click.option("--batch", type=click.IntRange(1), help="Batch size. [64]")
 @click.option("--steps", type=click.IntRange(1), help="Optimiser steps. [5000]")
-@click.option("--epochs", type=click.FloatRange(0, min_open=True), help="Instead of --steps: passes over the data.")
-@click.option("--lr", type=click.FloatRange(0, min_open=True), help="Peak learning rate. [5e-4]")
-@click.option("--beta", type=click.FloatRange(0), help="KL weight. [1e-5]")
-@click.option("--seed", type=int, help="Random seed. [0]")
+@click.option("--epochs", type=Finite(0, min_open=True), help="Instead of --steps: passes over the data.")
+@click.option("--lr", type=Finite(0, min_open=True), help="Peak learning rate. [5e-4]")
+@click.option("--beta", type=Finite(0), help="KL weight. [1e-5]")
+@click.option("--seed", type=SEED, help="Random seed. [0]")
 @click.option("--workers", type=click.IntRange(1), help="Image loading threads. [2]")
 @click.option("--resume", is_flag=True, help="Continue exactly from RUN/checkpoint.pt.")
 @click.option("--init", "init_model", default=None, metavar="NAME|DIR",
@@ -134,7 +134,7 @@ def train(data_dir, run_dir, val_dir, config_file, arch, size, paths, latent, gr
 
 @cli.command("train-aux", epilog=EXIT_HELP)
 @click.argument("data_dir", type=click.Path(file_okay=False))
-@click.option("-o", "--output", required=True, help="Folder for the model with its segment predictor (may be the input's).")
+@click.option("-o", "--output", required=True, callback=nonempty, help="Folder for the model with its segment predictor (may be the input's).")
 @click.option("--images", type=click.IntRange(1), default=2048, show_default=True,
               help="Training images to measure (a seeded subset).")
 @click.option("--steps", type=click.IntRange(1), default=3000, show_default=True, help="Optimiser steps of the fit.")
@@ -171,7 +171,7 @@ def train_aux(data_dir, output, images, steps, model_name, device, seed):
 
 @cli.command(epilog=EXIT_HELP)
 @click.argument("run_dir", type=click.Path(file_okay=False))
-@click.option("-o", "--output", required=True, help="Model folder to write (config.json + model.safetensors).")
+@click.option("-o", "--output", required=True, callback=nonempty, help="Model folder to write (config.json + model.safetensors).")
 @click.option("--half", is_flag=True, help="Store the weights in fp16 (half the size).")
 def export(run_dir, output, half):
     """Export the model of a training run's latest checkpoint (e.g. after Ctrl-C)."""

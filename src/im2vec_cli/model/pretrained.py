@@ -55,7 +55,10 @@ def resolve_model(name_or_dir: str | os.PathLike) -> Path:
     name = str(name_or_dir)
     candidates = []
     if os.environ.get("IM2VEC_MODELS"):
-        candidates.append(Path(os.environ["IM2VEC_MODELS"]) / name)
+        env = Path(os.environ["IM2VEC_MODELS"])
+        if not env.is_dir():  # a typo here would silently fall back to the shipped models
+            raise ModelError(f"IM2VEC_MODELS={env} is not a folder")
+        candidates.append(env / name)
     candidates += [REPO_MODELS / name, PACKAGE_MODELS / name]
     for c in candidates:
         if (c / "config.json").is_file():

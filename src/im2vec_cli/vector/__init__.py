@@ -5,8 +5,9 @@ overlap resolution and simplification."""
 from .cairo import contact_sheet, rasterize_svg
 from .image import VectorImage, VectorShape
 from .overlaps import resolve_overlaps, reverse_contour
+from .read import from_svg, parse_d
 from .simplify import simplify, simplify_contour
-from .svg import animated_svg, contour_d, from_svg, parse_d, to_svg
+from .svg import animated_svg, contour_d, to_svg
 from .tensors import from_tensors, render_vector, to_tensors
 
 __all__ = [

@@ -1,22 +1,16 @@
-"""SVG text <-> ``VectorImage``: the writer (static and animated) and a reader of closed
-cubic paths.
+"""``VectorImage`` -> SVG text: the writer (static and animated); the reader is ``read.py``.
 
 Frame: the ``VectorImage`` pixel frame is the SVG ``viewBox``.
 """
 
 from __future__ import annotations
 
-import math
-import re
 from collections.abc import Sequence
-from xml.etree import ElementTree
 
 import numpy as np
 import svgwrite
 
-from ..errors import InputError
-from ..raster.bezier import line_controls
-from .image import VectorImage, VectorShape
+from .image import VectorImage
 
 
 def _fmt(v: float, decimals: int) -> str:
@@ -54,135 +48,6 @@ def to_svg(image: VectorImage, decimals: int = 2) -> str:
         d = " ".join(contour_d(c, decimals) for c in shape.contours)
         dwg.add(dwg.path(d=d, fill=_hex(shape.color), fill_rule=shape.fill_rule, stroke="none"))
     return dwg.tostring()
-
-
-_TOKEN = re.compile(r"[A-Za-z]|[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
-
-
-OPEN_SUBPATH = "open subpath (no Z): im2vec reads closed paths only"
-
-
-def _close(cur: list[list[float]], pos, start, contours: list[np.ndarray]) -> None:
-    """``Z``: a straight closing segment back to ``start`` where needed, then the contour."""
-    if cur and pos is not None and start is not None and not np.allclose(pos, start):
-        a, b = np.asarray(pos), np.asarray(start)
-        cur += [*map(list, line_controls(a, b)), list(b)]
-    if len(cur) > 1:  # the last anchor is the start point again ("M x y Z" draws nothing)
-        contours.append(np.asarray(cur[:-1], dtype=np.float64))
-
-
-def parse_d(d: str) -> list[np.ndarray]:
-    """Closed contours of a path made of absolute ``M``, ``C``, ``L`` and ``Z`` commands.
-
-    Lines become cubics with controls at 1/3 and 2/3. Returns ``(3S, 2)`` arrays.
-    """
-    junk = _TOKEN.sub(" ", d).replace(",", " ").strip()
-    if junk:
-        raise InputError(f"unexpected characters in path data: {junk[:20]!r}")
-    toks = _TOKEN.findall(d)
-    contours: list[np.ndarray] = []
-    cur: list[list[float]] = []
-    start = pos = cmd = None  # the subpath's start, the current point, the current command
-    i = 0
-
-    def nums(k):
-        nonlocal i
-        vals = [float(t) for t in toks[i : i + k] if not t.isalpha()]
-        if len(vals) != k:
-            raise InputError(f"path data: command {cmd!r} needs {k} more numbers")
-        i += k
-        return vals
-
-    while i < len(toks):
-        t = toks[i]
-        if t.isalpha():
-            cmd = t
-            i += 1
-            if cmd in "Zz":
-                _close(cur, pos, start, contours)
-                cur, pos = [], start
-                continue
-        if cmd is None:
-            raise InputError("path data must start with a command")
-        if cmd in "mlc" and cmd.islower():
-            raise InputError(f"relative path command {cmd!r} is not supported")
-        if cmd in "LC" and not cur:  # a drawing command after Z starts a new subpath at the last start
-            if pos is None:
-                raise InputError("path data must start with M")
-            cur = [list(pos)]
-        if cmd == "M":
-            if cur:  # a new subpath before the last one was closed
-                raise InputError(OPEN_SUBPATH)
-            start = pos = nums(2)
-            cur = [list(pos)]
-            cmd = "L"
-        elif cmd == "L":
-            p = nums(2)
-            a, b = np.asarray(pos), np.asarray(p)
-            cur += [*map(list, line_controls(a, b)), list(b)]
-            pos = p
-        elif cmd == "C":
-            c1, c2, p = nums(2), nums(2), nums(2)
-            cur += [c1, c2, p]
-            pos = p
-        else:
-            raise InputError(f"unsupported path command {cmd!r}")
-    if cur:
-        raise InputError(OPEN_SUBPATH)
-    return contours
-
-
-def _parse_color(value: str | None) -> tuple[float, float, float]:
-    if not value or value == "none":
-        return (0.0, 0.0, 0.0)
-    v = value.strip()
-    if re.fullmatch(r"#[0-9a-fA-F]{6}", v):
-        return tuple(int(v[k : k + 2], 16) / 255 for k in (1, 3, 5))  # type: ignore[return-value]
-    if re.fullmatch(r"#[0-9a-fA-F]{3}", v):
-        return tuple(int(c * 2, 16) / 255 for c in v[1:])  # type: ignore[return-value]
-    named = {"black": (0.0, 0.0, 0.0), "white": (1.0, 1.0, 1.0)}
-    if v in named:
-        return named[v]
-    raise InputError(f"unsupported fill colour {value!r}")
-
-
-def from_svg(text: str | bytes) -> VectorImage:
-    """Read an SVG of closed cubic paths (as written by ``to_svg``) into a ``VectorImage``.
-
-    Raises ``InputError`` (one line) on anything else: bad XML, a bad viewBox, relative or
-    unsupported path commands, open subpaths, unknown fill rules or colours.
-    """
-    try:
-        root = ElementTree.fromstring(text)
-    except (ElementTree.ParseError, ValueError) as exc:  # ValueError: e.g. NUL bytes, bad encodings
-        raise InputError(f"not valid SVG/XML ({exc})") from None
-    if root.tag.rsplit("}", 1)[-1] != "svg":
-        raise InputError(f"the root element is <{root.tag.rsplit('}', 1)[-1]}>, not <svg>")
-    vb = root.get("viewBox")
-    try:
-        if vb:
-            x0, y0, w, h = (float(v) for v in vb.replace(",", " ").split())
-        else:
-            x0 = y0 = 0.0
-            w, h = float(root.get("width", "")), float(root.get("height", ""))
-    except ValueError:
-        raise InputError("the SVG needs a viewBox of four numbers, or numeric width and height") from None
-    if x0 != 0 or y0 != 0:
-        raise InputError("viewBox must start at 0 0")
-    if not (math.isfinite(w) and math.isfinite(h) and w > 0 and h > 0):
-        raise InputError(f"the canvas must have a positive finite size, got {w:g} x {h:g}")
-    shapes = []
-    for el in root.iter():
-        if el.tag.rsplit("}", 1)[-1] != "path":
-            continue
-        contours = parse_d(el.get("d", ""))
-        if any(not np.isfinite(c).all() for c in contours):
-            raise InputError("path data contains a non-finite number")
-        rule = el.get("fill-rule", "nonzero")
-        if rule not in ("nonzero", "evenodd"):
-            raise InputError(f"unsupported fill-rule {rule!r} (nonzero or evenodd)")
-        shapes.append(VectorShape(contours, _parse_color(el.get("fill")), rule))
-    return VectorImage(w, h, shapes)
 
 
 def animated_svg(frames: list[VectorImage], seconds: float = 3.0, decimals: int = 2) -> str:

@@ -6,6 +6,7 @@ Tensors use the normalised frame of shared/STYLE.md (``(x / W, y / H)`` of the c
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import torch
@@ -14,6 +15,8 @@ from ..errors import InputError
 from ..raster import composite_over, render_coverage
 from ..raster.bezier import flatten_closed, polygon_area, subdivide_to
 from .image import VectorImage, VectorShape
+
+MAX_RENDER_PIXELS = 16_000_000  # the render of one SVG; its tensors take a few hundred bytes a pixel
 
 
 def from_tensors(
@@ -78,10 +81,17 @@ def to_tensors(image: VectorImage, segments: int | None = None) -> tuple[torch.T
 def render_vector(image: VectorImage, *, scale: float = 1.0, tau: float = 0.15, samples: int = 16) -> torch.Tensor:
     """Render a ``VectorImage`` with im2vec's rasterizer (shapes back to front, each with its own fill rule).
 
+    Outputs over ``MAX_RENDER_PIXELS`` are refused (``InputError``) before anything is allocated.
+
     Returns:
         ``(3, H, W)`` with ``H, W = round(height * scale), round(width * scale)``.
     """
+    if not (math.isfinite(scale) and scale > 0 and math.isfinite(tau) and tau > 0):
+        raise ValueError(f"scale and tau must be finite and > 0, got {scale}, {tau}")
     h, w = max(1, round(image.height * scale)), max(1, round(image.width * scale))
+    if h * w > MAX_RENDER_PIXELS:
+        raise InputError(f"render of {w}x{h} pixels refused (at most {MAX_RENDER_PIXELS // 1_000_000} megapixels; "
+                         "lower --scale)")
     if not image.shapes:
         return torch.ones(3, h, w)
     pts, cols, sidx = to_tensors(image)
