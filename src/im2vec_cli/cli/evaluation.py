@@ -34,19 +34,19 @@ def _sweeps(model, files, ks) -> dict:
 
 
 @cli.command("eval", epilog=EXIT_HELP)
-@click.option("--data", "data_dir", required=True, help="Test images (DATA/test when it exists).")
+@click.option("--data", "data_dir", required=True, callback=nonempty, help="Test images (DATA/test when it exists).")
 @click.option("--limit", type=click.IntRange(1), default=None, help="Evaluate a seeded subset of N images.")
-@click.option("--train-data", "train_dir", default=None,
+@click.option("--train-data", "train_dir", default=None, callback=nonempty,
               help="Training images (DATA/train when it exists): adds the generation and interpolation metrics.")
 @click.option("--samples", type=click.IntRange(1), default=1000, show_default=True, help="Prior samples (generation).")
 @click.option("--pairs", type=click.IntRange(1), default=250, show_default=True, help="Training pairs (interpolation).")
 @click.option("--segments", default=None, help="Cubic segments per path (default: the model's).")
 @click.option("-o", "--output", default="-", show_default=True, callback=nonempty, help="JSON file or -.")
-@click.option("--markdown", default=None, help="Also write the figures as a markdown table to this file.")
+@click.option("--markdown", default=None, callback=nonempty, help="Also write the figures as a markdown table to this file.")
 @click.option("--sweep", default=None, metavar="K1-K2",
               help="Segments ablation (paper Fig. 5): reconstruction L2 at every k in K1..K2, with the sample "
                    "deformation on and switched off at inference.")
-@click.option("--plot", default=None, help="With --sweep: write the ablation plot to this PNG (needs matplotlib).")
+@click.option("--plot", default=None, callback=nonempty, help="With --sweep: write the ablation plot to this PNG (needs matplotlib).")
 @model_options
 def eval_cmd(data_dir, limit, train_dir, samples, pairs, segments, output, markdown, sweep, plot, model_name, device,
              seed):

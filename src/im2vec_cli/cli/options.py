@@ -56,9 +56,11 @@ def parse_sweep(text: str) -> list[int]:
 
 def nonempty(ctx, param, value):
     """Click callback: refuse ``""`` for a path argument, naming it (``""`` is not the current folder)."""
+    if value is None:  # an unset option
+        return value
     values = value if isinstance(value, tuple) else (value,)
     if any(v == "" for v in values):
-        raise click.BadParameter("is empty (give a file name, or - for stdin/stdout)", ctx=ctx, param=param)
+        raise click.BadParameter("is empty (give a path)", ctx=ctx, param=param)
     return value
 
 

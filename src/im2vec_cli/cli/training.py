@@ -67,9 +67,9 @@ class _Progress:
 
 
 @cli.command(epilog=EXIT_HELP)
-@click.argument("data_dir", type=click.Path(file_okay=False))
+@click.argument("data_dir", type=click.Path(file_okay=False), callback=nonempty)
 @click.option("--out", "run_dir", default="runs/latest", show_default=True, callback=nonempty, help="Run directory.")
-@click.option("--val", "val_dir", default=None, help="Validation folder (default: DATA_DIR/val, or a split).")
+@click.option("--val", "val_dir", default=None, callback=nonempty, help="Validation folder (default: DATA_DIR/val, or a split).")
 @click.option("--config", "config_file", default=None, type=click.Path(dir_okay=False),
               help="JSON with 'model' and/or 'train' sections (options below override it).")
 @click.option("--arch", type=click.Choice(["im2vec", "imagevae"]),
@@ -133,7 +133,7 @@ def train(data_dir, run_dir, val_dir, config_file, arch, size, paths, latent, gr
 
 
 @cli.command("train-aux", epilog=EXIT_HELP)
-@click.argument("data_dir", type=click.Path(file_okay=False))
+@click.argument("data_dir", type=click.Path(file_okay=False), callback=nonempty)
 @click.option("-o", "--output", required=True, callback=nonempty, help="Folder for the model with its segment predictor (may be the input's).")
 @click.option("--images", type=click.IntRange(1), default=2048, show_default=True,
               help="Training images to measure (a seeded subset).")
@@ -170,7 +170,7 @@ def train_aux(data_dir, output, images, steps, model_name, device, seed):
 
 
 @cli.command(epilog=EXIT_HELP)
-@click.argument("run_dir", type=click.Path(file_okay=False))
+@click.argument("run_dir", type=click.Path(file_okay=False), callback=nonempty)
 @click.option("-o", "--output", required=True, callback=nonempty, help="Model folder to write (config.json + model.safetensors).")
 @click.option("--half", is_flag=True, help="Store the weights in fp16 (half the size).")
 def export(run_dir, output, half):
