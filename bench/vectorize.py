@@ -218,6 +218,33 @@ def main():
 
     set_compile(False)
     model = from_pretrained(args.model)
+    tools = _tools(model, glyphs, args)
+    tools["im2vec amortised"](glyphs[0])  # warm-up (lazy init)
+    rows = {}
+    for name, fn in tools.items():
+        if fn is None:
+            continue
+        outs, times = run_tool(fn, glyphs)
+        rows[name] = score(glyphs, outs, times)
+        print(_line(name, rows[name]), flush=True)
+    print()
+    table = markdown(rows, len(glyphs), args)
+    print(table)
+    if args.throughput:
+        t = throughput(glyphs, args.throughput, args.model)
+        verdict = "met" if t["potrace_s"] >= t["im2vec_s"] else "not met"
+        line = (f"\n{t['glyphs']} glyphs in one command: im2vec vectorize {t['im2vec_s']:.2f} s "
+                f"({t['glyphs'] / t['im2vec_s']:.0f} glyphs/s, process start and model load included), "
+                f"potrace {t['potrace_s']:.2f} s ({t['glyphs'] / t['potrace_s']:.0f} glyphs/s); "
+                f"ratio {t['potrace_s'] / t['im2vec_s']:.2f}x potrace's speed (target >= 1x: {verdict})")
+        print(line)
+        table += line + "\n"
+    if args.markdown:
+        Path(args.markdown).write_text(table)
+
+
+def _tools(model, glyphs, args) -> dict:
+    """Tool name -> ``glyph -> SVG text`` (``None``: skipped in this run)."""
     images = {g["name"]: load_image(g["name"] + ".png", g["png"]) for g in glyphs}
     opts = _segment_options(model, args)
 
@@ -246,28 +273,7 @@ def main():
         "vtracer (binary)": lambda g: vtracer_svg(g["png"]),
         "bilinear 4x threshold": lambda g: bilinear_mask(g["png"]),
     }
-    amortised(glyphs[0])  # warm-up (lazy init)
-    rows = {}
-    for name, fn in tools.items():
-        if fn is None:
-            continue
-        outs, times = run_tool(fn, glyphs)
-        rows[name] = score(glyphs, outs, times)
-        print(_line(name, rows[name]), flush=True)
-    print()
-    table = markdown(rows, len(glyphs), args)
-    print(table)
-    if args.throughput:
-        t = throughput(glyphs, args.throughput, args.model)
-        verdict = "met" if t["potrace_s"] >= t["im2vec_s"] else "not met"
-        line = (f"\n{t['glyphs']} glyphs in one command: im2vec vectorize {t['im2vec_s']:.2f} s "
-                f"({t['glyphs'] / t['im2vec_s']:.0f} glyphs/s, process start and model load included), "
-                f"potrace {t['potrace_s']:.2f} s ({t['glyphs'] / t['potrace_s']:.0f} glyphs/s); "
-                f"ratio {t['potrace_s'] / t['im2vec_s']:.2f}x potrace's speed (target >= 1x: {verdict})")
-        print(line)
-        table += line + "\n"
-    if args.markdown:
-        Path(args.markdown).write_text(table)
+    return tools
 
 
 def _segment_options(model, args) -> dict:

@@ -178,6 +178,15 @@ def write_markdown(results, sweeps, skipped, args, total_s, reused: int = 0):
         f"Test sets are seeded subsets of {args.limit} test-split images (fewer where the split is smaller);",
         "the test fonts families, the MNIST test digits and the emoji/icon test files were never trained on.",
         "Definitions: `src/im2vec_cli/evaluate.py`.",
+    ]
+    L += _table1(results) + _table2(results, args) + _outlines(results) + (_sweeps(sweeps, args) if sweeps else [])
+    L += _provenance(results, sweeps, skipped)
+    (ROOT / "docs" / "RESULTS.md").write_text("\n".join(L) + "\n")
+    print(f"wrote {ROOT / 'docs' / 'RESULTS.md'}", file=sys.stderr)
+
+
+def _table1(results) -> list[str]:
+    L = [
         "",
         "## Table 1: reconstruction L2 on the test split",
         "",
@@ -190,7 +199,11 @@ def write_markdown(results, sweeps, skipped, args, total_s, reused: int = 0):
         comp = f"{r['paths']:.2f} / {r['segments']:.1f}" if "paths" in r else "raster"
         kind = "ImageVAE (baseline)" if r["arch"] == "imagevae" else "Im2Vec"
         L.append(f"| {ds} | {kind} | {fmt(r, 'recon_l2')} | {paper} | {r['images']} | {comp} |")
-    L += [
+    return L
+
+
+def _table2(results, args) -> list[str]:
+    L = [
         "",
         "## Table 2: generation and interpolation",
         "",
@@ -206,16 +219,24 @@ def write_markdown(results, sweeps, skipped, args, total_s, reused: int = 0):
             kind = "ImageVAE (baseline)" if r["arch"] == "imagevae" else "Im2Vec"
             L.append(f"| {label.split()[0]} | {kind} | {fmt(r, 'generation_l2')} | {fmt(r, 'interpolation_l2')} | "
                      f"{r['train_images']:,} |")
+    return L
+
+
+def _outlines(results) -> list[str]:
+    """Fonts only: their true outlines are the fonts' own (fontTools); the emoji and icon
+    sources are coloured or stroked drawings that a dark-inside mask does not describe."""
+    L = []
     # only sets whose every true outline was read: a few readable files of a set would not speak for it
-    outl = {k: r for k, r in results.items() if "outline_iou" in r and not r.get("outlines_unread")}
+    outl = {k: r for k, r in results.items()
+            if k.startswith("fonts") and "outline_iou" in r and not r.get("outlines_unread")}
     if outl:
         L += [
             "",
             "## Against the true outlines",
             "",
             "IoU of the insides at 4x (cairosvg renders) and the symmetric Chamfer distance between the",
-            "SVG outline and the font's own outline (fontTools), in input pixels. Only fonts: most emoji",
-            "and icon source SVGs use relative path commands our reader does not take. Amortised (one pass of the",
+            "SVG outline and the font's own outline (fontTools), in input pixels. Only fonts: the emoji and",
+            "icon sources are coloured drawings that a dark-inside mask does not describe. Amortised (one pass of the",
             "model, no refinement: `vectorize --no-refine`). docs/VECTORIZE.md has the refined figures",
             "beside potrace and vtracer.",
             "",
@@ -223,35 +244,43 @@ def write_markdown(results, sweeps, skipped, args, total_s, reused: int = 0):
             "|---|---|---|---|",
         ]
         L += [f"| {k} | {fmt(r, 'outline_iou')} | {fmt(r, 'chamfer_px', 3)} | {r['outlines']} |" for k, r in outl.items()]
-    if sweeps:
-        L += [
-            "",
-            "## Segments ablation (paper Fig. 5)",
-            "",
-            "Reconstruction L2 with every path decoded at k segments, k = 6…25, on a seeded subset of",
-            f"{args.sweep_limit} test images. The models are trained once with k drawn per step, so one model",
-            "decodes every k. *Deformation off at inference* decodes a model trained with the sample",
-            "deformation on evenly spaced circle samples; the MNIST pair was trained with and without",
-            "the deformation at the same short budget (the training-time ablation).",
-            "",
-        ]
-        ks = [row["k"] for row in next(iter(sweeps.values()))["segments_sweep"]]
-        cols = []
-        for label, r in sweeps.items():
-            cols.append((label, r["segments_sweep"]))
-            if "segments_sweep_deform_off" in r:
-                cols.append((label + ", deformation off at inference", r["segments_sweep_deform_off"]))
-        L.append("| k | " + " | ".join(c[0] for c in cols) + " |")
-        L.append("|---" * (len(cols) + 1) + "|")
-        for i, k in enumerate(ks):
-            L.append(f"| {k} | " + " | ".join(f"{c[1][i]['recon_l2']:.4f}" for c in cols) + " |")
-        L.append("")
-        for label, r in sweeps.items():
-            png = f"results/sweep-{Path(r['model_dir']).name}.png"
-            L.append(f"![{label}]({png})")
-        if (OUT / "sweep-mnist.png").is_file():
-            L.append("![MNIST: trained with and without deformation](results/sweep-mnist.png)")
+    return L
+
+
+def _sweeps(sweeps, args) -> list[str]:
+    L = []
     L += [
+        "",
+        "## Segments ablation (paper Fig. 5)",
+        "",
+        "Reconstruction L2 with every path decoded at k segments, k = 6…25, on a seeded subset of",
+        f"{args.sweep_limit} test images. The models are trained once with k drawn per step, so one model",
+        "decodes every k. *Deformation off at inference* decodes a model trained with the sample",
+        "deformation on evenly spaced circle samples; the MNIST pair was trained with and without",
+        "the deformation at the same short budget (the training-time ablation).",
+        "",
+    ]
+    ks = [row["k"] for row in next(iter(sweeps.values()))["segments_sweep"]]
+    cols = []
+    for label, r in sweeps.items():
+        cols.append((label, r["segments_sweep"]))
+        if "segments_sweep_deform_off" in r:
+            cols.append((label + ", deformation off at inference", r["segments_sweep_deform_off"]))
+    L.append("| k | " + " | ".join(c[0] for c in cols) + " |")
+    L.append("|---" * (len(cols) + 1) + "|")
+    for i, k in enumerate(ks):
+        L.append(f"| {k} | " + " | ".join(f"{c[1][i]['recon_l2']:.4f}" for c in cols) + " |")
+    L.append("")
+    for label, r in sweeps.items():
+        png = f"results/sweep-{Path(r['model_dir']).name}.png"
+        L.append(f"![{label}]({png})")
+    if (OUT / "sweep-mnist.png").is_file():
+        L.append("![MNIST: trained with and without deformation](results/sweep-mnist.png)")
+    return L
+
+
+def _provenance(results, sweeps, skipped) -> list[str]:
+    L = [
         "",
         "## How each figure was made",
         "",
@@ -262,8 +291,7 @@ def write_markdown(results, sweeps, skipped, args, total_s, reused: int = 0):
         L.append(f"| {label} | `{r['command']}` | {r['wall_s']:.0f} s | {training(r['model_dir'])} |")
     if skipped:
         L += ["", "Skipped (model or dataset missing on this machine): " + "; ".join(skipped) + "."]
-    (ROOT / "docs" / "RESULTS.md").write_text("\n".join(L) + "\n")
-    print(f"wrote {ROOT / 'docs' / 'RESULTS.md'}", file=sys.stderr)
+    return L
 
 
 if __name__ == "__main__":
