@@ -111,14 +111,14 @@ def test_reconstruction_reports_outline_metrics_where_truth_exists(tmp_path):
 
 
 def test_unreadable_outline_is_counted_not_fatal(tmp_path):
-    """A true outline the reader refuses (a stroke) is counted in outlines_unread; the image
+    """A true outline the reader refuses (a gradient fill) is counted in outlines_unread; the image
     still gets its reconstruction L2. Relative commands (as Twemoji's) are read."""
     model = from_pretrained(make_tiny_model(tmp_path / "m"))
     arr = np.full((32, 32, 3), 255, np.uint8)
     arr[8:24, 8:24] = 0
     Image.fromarray(arr).save(tmp_path / "e.png")
     (tmp_path / "e.svg").write_text('<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 32 32">'
-                                    '<path d="M8 8l16 0l0 16l-16 0z" stroke="red"/></svg>')
+                                    '<path d="M8 8l16 0l0 16l-16 0z" fill="url(#g)"/></svg>')
     res = reconstruction_l2(model, [tmp_path / "e.png"])
     assert res["outlines_unread"] == 1 and "outline_iou" not in res and res["images"] == 1
     (tmp_path / "e.svg").write_text('<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 32 32">'

@@ -351,7 +351,11 @@ def in_render_font_outline(d, m):
 
 
 def in_render_stroke(d, m):
-    return _render(d, _svg('M 1 1 L 9 1 L 9 9 Z" stroke="red'))
+    return _render(d, _svg('M 1 2 L 8 2 L 8 9" fill="none" stroke="black" stroke-width="2'))  # its filled outline
+
+
+def in_render_semi_transparent_stroke(d, m):
+    return _render(d, _svg('M 1 1 L 9 1 L 9 9 Z" stroke="red" stroke-opacity="0.5'))
 
 
 def in_render_gradient(d, m):
@@ -549,7 +553,8 @@ CASES = {
     "SVG: relative commands": (in_render_relative_commands, "png"),
     "SVG: open path": (in_render_open_path, "png"),
     "SVG: font outline (H V Q T S, relative)": (in_render_font_outline, "png"),
-    "SVG: stroke": (in_render_stroke, "error"),
+    "SVG: stroke": (in_render_stroke, "png"),
+    "SVG: semi-transparent stroke": (in_render_semi_transparent_stroke, "error"),
     "SVG: gradient fill": (in_render_gradient, "error"),
     "SVG: text": (in_render_text, "error"),
     "SVG: coordinates of 1e308": (in_render_huge_coordinates, "error"),

@@ -51,7 +51,7 @@ def test_to_tensors_pads_segments_without_changing_shape():
     assert np.abs(a - b).max() < 0.02
 
 
-@pytest.mark.parametrize("bad", ["<svg", "<svg xmlns='http://www.w3.org/2000/svg'><path d='M 0 0 L 1 1' stroke='#000'/></svg>"])
+@pytest.mark.parametrize("bad", ["<svg", "<svg xmlns='http://www.w3.org/2000/svg'><path d='M 0 0 L 1 1' fill='url(#g)'/></svg>"])
 def test_bad_svg_is_a_one_line_error(bad):
     with pytest.raises(InputError):
         from_svg(bad)
@@ -77,6 +77,20 @@ FEATURES = {  # SVGs a user has, read by the reader and checked against cairosvg
                                 '<path d="M-4 -4 L10 -4 L10 4 Z" style="fill:#123456"/></svg>',
     "fill none is skipped": f'<svg {NS} viewBox="0 0 20 20"><rect width="20" height="20" fill="none"/>'
                             '<circle cx="10" cy="10" r="4"/></svg>',
+    "strokes: round caps and joins": f'<svg {NS} viewBox="0 0 24 24"><polyline points="3 12 9 18 21 6" fill="none" '
+                                     'stroke="#000" stroke-width="2" stroke-linecap="round" stroke-linejoin="round"/></svg>',
+    "strokes over fills": f'<svg {NS} viewBox="0 0 24 24"><rect x="4" y="4" width="16" height="12" rx="3" fill="#fc0" '
+                          'stroke="#036" stroke-width="2"/></svg>',
+    "strokes under a non-uniform scale": f'<svg {NS} width="48" height="48" viewBox="0 0 24 24"><g transform="scale(1 0.5)'
+                                         ' translate(0 12)"><circle cx="12" cy="12" r="8" fill="none" stroke="red" '
+                                         'stroke-width="3"/></g></svg>',
+    "strokes: miter joins, butt caps, dashes": f'<svg {NS} viewBox="0 0 24 24"><path d="M4 20 L12 4 L20 20" fill="none" '
+                                               'stroke="black" stroke-width="3" stroke-miterlimit="10"/><line x1="2" '
+                                               'y1="22" x2="22" y2="22" stroke="#080" stroke-dasharray="3 2"/></svg>',
+    "a stroked icon (Lucide's rotate-cw)": f'<svg {NS} width="24" height="24" viewBox="0 0 24 24" fill="none" '
+                                           'stroke="currentColor" stroke-width="2" stroke-linecap="round" '
+                                           'stroke-linejoin="round"><path d="M21 12a9 9 0 1 1-9-9c2.52 0 4.93 1 6.74 '
+                                           '2.74L21 8"/><path d="M21 3v5h-5"/></svg>',
 }
 
 
@@ -95,7 +109,9 @@ def test_reader_agrees_with_cairo(name):
 
 
 @pytest.mark.parametrize("svg, why", [
-    (f'<svg {NS} viewBox="0 0 9 9"><path d="M1 1 L8 1 L8 8 Z" stroke="red"/></svg>', "strokes"),
+    (f'<svg {NS} viewBox="0 0 9 9"><path d="M1 1 L8 1 L8 8 Z" stroke="red" stroke-opacity="0.5"/></svg>',
+     "semi-transparent strokes"),
+    (f'<svg {NS} viewBox="0 0 9 9"><path d="M1 1 L8 1 L8 8 Z" stroke="url(#g)"/></svg>', "gradient and pattern strokes"),
     (f'<svg {NS} viewBox="0 0 9 9"><defs><radialGradient id="g"/></defs><circle r="3" cx="4" cy="4" fill="url(#g)"/>'
      '</svg>', "gradient"),
     (f'<svg {NS} viewBox="0 0 9 9"><circle r="3" cx="4" cy="4" fill-opacity="0.5"/></svg>', "semi-transparent"),

@@ -6,10 +6,12 @@ closed cubic contours: lines and quadratics are elevated, arcs are approximated 
 (svgelements), and an open subpath is closed as SVG fills it. The canvas is the SVG's
 viewport (``width x height``, or the viewBox's size), in the pixel frame of ``image.py``.
 
-Refused with one ``InputError`` line, never drawn wrong: strokes, gradient or pattern fills,
-semi-transparent fills, text and embedded images, and, before any geometry is built, SVGs
-over ``MAX_SEGMENTS`` segments or with coordinates beyond ``MAX_COORD`` px. Shapes with
-``fill="none"`` and no stroke draw nothing and are skipped.
+Strokes become filled outlines (skia-pathops: width, caps, joins, miter limit, dashes),
+stroked in the element's own coordinates and then transformed, written as a second shape
+over the element's fill. Refused with one ``InputError`` line, never drawn wrong: gradient
+or pattern paint, semi-transparent paint, text and embedded images, and, before any
+geometry is built, SVGs over ``MAX_SEGMENTS`` segments or with coordinates beyond
+``MAX_COORD`` px. Shapes with ``fill="none"`` and no stroke draw nothing and are skipped.
 """
 
 from __future__ import annotations
@@ -53,14 +55,21 @@ def _check_xml(data: bytes) -> None:
         raise InputError(f"too much path data ({numbers} numbers; at most {MAX_SEGMENTS} segments)")
 
 
+def _stroked(el) -> bool:
+    return el.stroke is not None and el.stroke.value is not None and float(el.stroke_width or 0) > 0
+
+
 def _refuse_paint(el) -> None:
     """One line for what a ``VectorShape`` (one opaque flat fill) cannot hold."""
     kind = type(el).__name__.lower()
     fill = str(el.values.get("fill", ""))
     if fill.startswith("url("):
         raise InputError(f"<{kind}>: gradient and pattern fills are not supported ({fill})")
-    if el.stroke is not None and el.stroke.value is not None and (el.stroke_width or 0) > 0:
-        raise InputError(f"<{kind}>: strokes are not supported (convert strokes to filled paths)")
+    stroke = str(el.values.get("stroke", ""))
+    if stroke.startswith("url("):
+        raise InputError(f"<{kind}>: gradient and pattern strokes are not supported ({stroke})")
+    if _stroked(el) and el.stroke.alpha < 255:
+        raise InputError(f"<{kind}>: semi-transparent strokes are not supported")
     if el.fill is not None and el.fill.value is not None and el.fill.alpha < 255:
         raise InputError(f"<{kind}>: semi-transparent fills are not supported")
     opacity = el.values.get("opacity")
@@ -68,65 +77,148 @@ def _refuse_paint(el) -> None:
         raise InputError(f"<{kind}>: opacity below 1 is not supported")
 
 
-def _point(p, m=None) -> list[float]:
-    """A point, mapped by the affine matrix ``m`` (svgelements ``Matrix``) when given, and checked."""
+def _point(p) -> list[float]:
+    """An svgelements point, checked finite and within ``MAX_COORD``."""
     x, y = float(p.x), float(p.y)
-    if m is not None:
-        x, y = m.a * x + m.c * y + m.e, m.b * x + m.d * y + m.f
-    if not (math.isfinite(x) and math.isfinite(y) and abs(x) <= MAX_COORD and abs(y) <= MAX_COORD):
-        raise InputError(f"path coordinate ({x:g}, {y:g}) is not finite or beyond {MAX_COORD:g} px")
+    _check_coords(np.array([x, y]))
     return [x, y]
 
 
-def _contours(make_path, matrix=None) -> list[np.ndarray]:
-    """``make_path()``, svgelements path segments in their element's own coordinates -> closed cubic
-    contours ``(3S, 2)`` (every subpath closed), mapped by ``matrix``: the element's transforms
-    and the viewBox, applied to the cubics' control points (exact for an affine map; arcs are
-    made cubic first, so a skewed circle stays an ellipse). Any failure of svgelements on odd
-    data is one ``InputError`` line."""
+def _check_coords(points: np.ndarray) -> None:
+    bad = ~(np.isfinite(points) & (np.abs(points) <= MAX_COORD))
+    if bad.any():
+        x, y = points.reshape(-1, 2)[bad.reshape(-1, 2).any(-1)][0]
+        raise InputError(f"path coordinate ({x:g}, {y:g}) is not finite or beyond {MAX_COORD:g} px")
+
+
+def _transform(points: np.ndarray, m) -> np.ndarray:
+    """``(N, 2)`` mapped by the affine svgelements ``Matrix`` ``m`` (exact on cubic control
+    points), checked like every coordinate."""
+    if m is not None:
+        points = points @ np.array([[m.a, m.b], [m.c, m.d]]) + np.array([m.e, m.f])
+    _check_coords(points)
+    return points
+
+
+def _guard(fn, *args):
+    """``fn(*args)``; any failure of svgelements or pathops on odd data is one ``InputError`` line."""
     try:
-        return _walk(make_path(), matrix)
+        return fn(*args)
     except InputError:
         raise
-    except Exception as exc:  # noqa: BLE001 - svgelements raises many types (e.g. on degenerate arcs)
+    except Exception as exc:  # noqa: BLE001 - they raise many types (e.g. on degenerate arcs)
         raise InputError(f"unreadable path data ({' '.join(str(exc).split())[:120] or type(exc).__name__})") from None
 
 
-def _walk(segments, m) -> list[np.ndarray]:
+def _subpaths(segments) -> list[tuple[np.ndarray, bool]]:
+    """svgelements path segments (their element's own coordinates) -> cubic chains
+    ``(1 + 3S, 2)`` (anchor, control, control, anchor, ...) and whether each was closed by Z.
+    Lines and quadratics are elevated; arcs are made cubic here, before any transform, so a
+    skewed circle stays exact."""
     import svgelements as se
 
-    contours: list[np.ndarray] = []
+    out: list[tuple[np.ndarray, bool]] = []
     cur: list[list[float]] = []
 
-    def close():
-        if len(cur) > 1 and not np.allclose(cur[-1], cur[0]):
-            a, b = np.asarray(cur[-1]), np.asarray(cur[0])
-            cur.extend([*map(list, line_controls(a, b)), list(b)])
-        if len(cur) > 3:  # the last anchor is the start again; a lone point draws nothing
-            contours.append(np.asarray(cur[:-1], dtype=np.float64))
+    def end(closed: bool):
+        if len(cur) > 1:
+            out.append((np.asarray(cur, dtype=np.float64), closed))
         cur.clear()
 
     for seg in segments:
         if isinstance(seg, se.Move):
-            close()
-            cur.append(_point(seg.end, m))
+            end(False)
+            cur.append(_point(seg.end))
             continue
         if isinstance(seg, se.Close):
-            close()
+            end(True)
             continue
         if not cur:  # drawing without a moveto starts where the last subpath started (0, 0 at first)
-            cur.append(_point(seg.start, m) if seg.start is not None else _point(se.Point(0, 0), m))
+            cur.append(_point(seg.start) if seg.start is not None else [0.0, 0.0])
         for c in seg.as_cubic_curves() if isinstance(seg, se.Arc) else [seg]:
             if isinstance(c, se.Line):
-                a, b = np.asarray(cur[-1]), np.asarray(_point(c.end, m))
+                a, b = np.asarray(cur[-1]), np.asarray(_point(c.end))
                 cur.extend([*map(list, line_controls(a, b)), list(b)])
             elif isinstance(c, se.QuadraticBezier):
-                a, q, b = np.asarray(cur[-1]), np.asarray(_point(c.control, m)), np.asarray(_point(c.end, m))
+                a, q, b = np.asarray(cur[-1]), np.asarray(_point(c.control)), np.asarray(_point(c.end))
                 cur.extend([list(a + 2 * (q - a) / 3), list(b + 2 * (q - b) / 3), list(b)])
             elif isinstance(c, se.CubicBezier):
-                cur.extend([_point(c.control1, m), _point(c.control2, m), _point(c.end, m)])
-    close()
-    return contours
+                cur.extend([_point(c.control1), _point(c.control2), _point(c.end)])
+    end(False)
+    return out
+
+
+def _closed(chain: np.ndarray) -> np.ndarray | None:
+    """A chain closed as a fill closes it (a straight line back to its start where needed):
+    ``(3S, 2)`` in the wrap-around layout, or ``None`` when it encloses nothing."""
+    if not np.allclose(chain[-1], chain[0]):
+        a, b = chain[-1], chain[0]
+        chain = np.concatenate([chain, np.stack([*line_controls(a, b), b])])
+    return chain[:-1] if len(chain) > 3 else None  # the last anchor is the start again
+
+
+def _fill_contours(chains: list[tuple[np.ndarray, bool]], m) -> list[np.ndarray]:
+    """Every subpath closed (as SVG fills an open one), mapped by ``m``; subpaths on one
+    straight line (a ``<line>``'s fill) enclose nothing and are dropped."""
+    out = []
+    for c in (_closed(ch) for ch, _ in chains):
+        if c is not None and np.linalg.matrix_rank(c - c.mean(0), tol=1e-9 * (1 + np.abs(c).max())) == 2:
+            out.append(_transform(c, m))
+    return out
+
+
+CAPS = {"butt": "BUTT_CAP", "round": "ROUND_CAP", "square": "SQUARE_CAP"}
+JOINS = {"miter": "MITER_JOIN", "miter-clip": "MITER_JOIN", "arcs": "MITER_JOIN", "round": "ROUND_JOIN",
+         "bevel": "BEVEL_JOIN"}
+
+
+def _stroke_contours(chains: list[tuple[np.ndarray, bool]], el, m) -> list[np.ndarray]:
+    """The outline of an element's stroke as closed filled contours (skia-pathops: width,
+    caps, joins, miter limit and dashes as SVG says), stroked in the element's own
+    coordinates and then mapped by ``m``, so a scaled or skewed stroke is scaled or skewed too."""
+    import pathops
+    from fontTools.pens.basePen import decomposeQuadraticSegment
+
+    v = el.values
+    path = pathops.Path()
+    for ch, closed in chains:
+        path.moveTo(*ch[0])
+        for i in range(1, len(ch), 3):
+            path.cubicTo(*ch[i], *ch[i + 1], *ch[i + 2])
+        if closed:
+            path.close()
+    dash_text = str(v.get("stroke-dasharray", "none")).strip()
+    dashes = [] if dash_text == "none" else [float(x) for x in re.split(r"[\s,]+", dash_text) if x]
+    if len(dashes) % 2:
+        dashes *= 2  # SVG repeats an odd list
+    path.stroke(float(el.stroke_width), getattr(pathops.LineCap, CAPS.get(str(v.get("stroke-linecap", "butt")), "BUTT_CAP")),
+                getattr(pathops.LineJoin, JOINS.get(str(v.get("stroke-linejoin", "miter")), "MITER_JOIN")),
+                float(v.get("stroke-miterlimit", 4)), dash_array=dashes or None,
+                dash_offset=float(v.get("stroke-dashoffset", 0) or 0))
+    path.convertConicsToQuads()
+    path.simplify()  # one non-overlapping outline (nonzero)
+    out, cur = [], []
+    for verb, pts in path.segments:
+        if verb == "moveTo":
+            cur = [list(pts[0])]
+        elif verb == "lineTo":
+            a, b = np.asarray(cur[-1]), np.asarray(pts[0])
+            cur.extend([*map(list, line_controls(a, b)), list(b)])
+        elif verb == "curveTo":
+            cur.extend([list(p) for p in pts])
+        elif verb == "qCurveTo":
+            if pts[-1] is None:  # a closed contour of off-curve points only: it starts between the last and first
+                start = tuple((np.asarray(pts[-2]) + np.asarray(pts[0])) / 2)
+                cur, pts = [list(start)], (*pts[:-1], start)
+            for q, b in decomposeQuadraticSegment(pts):
+                a, q, b = np.asarray(cur[-1]), np.asarray(q), np.asarray(b)
+                cur.extend([list(a + 2 * (q - a) / 3), list(b + 2 * (q - b) / 3), list(b)])
+        elif verb in ("closePath", "endPath") and len(cur) > 1:
+            c = _closed(np.asarray(cur, dtype=np.float64))
+            if c is not None:
+                out.append(_transform(c, m))
+            cur = []
+    return out
 
 
 def from_svg(text: str | bytes) -> VectorImage:
@@ -140,7 +232,7 @@ def from_svg(text: str | bytes) -> VectorImage:
     data = text.encode("utf-8") if isinstance(text, str) else bytes(text)
     _check_xml(data)
     try:
-        doc = se.SVG.parse(io.BytesIO(data), reify=False)  # transforms are applied to our cubics (_walk)
+        doc = se.SVG.parse(io.BytesIO(data), reify=False)  # transforms are applied to our cubics (_transform)
     except Exception as exc:  # noqa: BLE001 - svgelements raises many types on odd documents
         raise InputError(f"unreadable SVG ({' '.join(str(exc).split())[:120] or type(exc).__name__})") from None
     if not isinstance(doc, se.SVG):
@@ -155,17 +247,22 @@ def from_svg(text: str | bytes) -> VectorImage:
         if not isinstance(el, se.Shape):
             continue
         _refuse_paint(el)
-        if el.fill is None or el.fill.value is None:  # fill="none" without a stroke: nothing to draw
+        filled, stroked = el.fill is not None and el.fill.value is not None, _stroked(el)
+        if not (filled or stroked):  # fill="none" and no stroke: nothing to draw
             continue
-        contours = _contours(lambda el=el: el.segments(transformed=False), el.transform)
-        segments += sum(len(c) // 3 for c in contours)
-        if segments > MAX_SEGMENTS:
-            raise InputError(f"too many path segments (more than {MAX_SEGMENTS})")
+        chains = _guard(lambda el=el: _subpaths(el.segments(transformed=False)))
         rule = str(el.values.get("fill-rule", "nonzero")).strip()
         if rule not in ("nonzero", "evenodd"):
             raise InputError(f"unsupported fill-rule {rule!r} (nonzero or evenodd)")
-        if contours:
-            shapes.append(VectorShape(contours, (el.fill.red / 255, el.fill.green / 255, el.fill.blue / 255), rule))
+        for paint, contours, fill_rule in (
+            (el.fill, _fill_contours(chains, el.transform) if filled else [], rule),  # the fill, then the stroke over it
+            (el.stroke, _guard(_stroke_contours, chains, el, el.transform) if stroked else [], "nonzero"),
+        ):
+            segments += sum(len(c) // 3 for c in contours)
+            if segments > MAX_SEGMENTS:
+                raise InputError(f"too many path segments (more than {MAX_SEGMENTS})")
+            if contours:
+                shapes.append(VectorShape(contours, (paint.red / 255, paint.green / 255, paint.blue / 255), fill_rule))
     return VectorImage(w, h, shapes)
 
 
@@ -175,4 +272,4 @@ def parse_d(d: str) -> list[np.ndarray]:
 
     if len(_NUMBER.findall(d)) > 6 * MAX_SEGMENTS:
         raise InputError(f"too much path data (at most {MAX_SEGMENTS} segments)")
-    return _contours(lambda: se.Path(d).segments())
+    return _fill_contours(_guard(lambda: _subpaths(se.Path(d).segments())), None)
