@@ -376,6 +376,19 @@ def in_render_million_segments(d, m):
     return _render(d, _svg("M 1 1 " + "L 2 2 L 1 1 " * 500_000 + "Z"))
 
 
+def in_render_use_bomb(d, m):
+    parts = ['<svg xmlns="http://www.w3.org/2000/svg" xmlns:xlink="http://www.w3.org/1999/xlink" viewBox="0 0 10 10">'
+             '<defs><path id="g0" d="M1 1 L2 1 L2 2 Z"/>']
+    for i in range(1, 8):  # 10^7 paths once expanded
+        parts.append(f'<g id="g{i}">' + f'<use xlink:href="#g{i - 1}"/>' * 10 + "</g>")
+    return _render(d, "".join(parts) + '</defs><use xlink:href="#g7"/></svg>')
+
+
+def in_render_use_cycle(d, m):
+    return _render(d, '<svg xmlns="http://www.w3.org/2000/svg" xmlns:xlink="http://www.w3.org/1999/xlink" '
+                      'viewBox="0 0 10 10"><g id="a"><path d="M1 1 L9 1 L9 9 Z"/><use xlink:href="#a"/></g></svg>')
+
+
 def in_render_huge_viewbox(d, m):
     return _render(d, _svg("M 1 1 L 9 1 L 9 9 Z", "0 0 100000 100000"))
 
@@ -560,6 +573,8 @@ CASES = {
     "SVG: coordinates of 1e308": (in_render_huge_coordinates, "error"),
     "SVG: 1,000,000 segments": (in_render_million_segments, "error"),
     "SVG: viewBox of 100000 x 100000": (in_render_huge_viewbox, "error"),
+    "SVG: <use> bomb": (in_render_use_bomb, "error"),
+    "SVG: <use> cycle": (in_render_use_cycle, "error"),
     "render --scale 1000": (in_render_scale_1000, "error"),
     "render --scale nan": (in_render_scale_nan, "usage"),
     "render --tau nan": (in_render_tau_nan, "usage"),

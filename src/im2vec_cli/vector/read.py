@@ -10,8 +10,8 @@ Strokes become filled outlines (skia-pathops: width, caps, joins, miter limit, d
 stroked in the element's own coordinates and then transformed, written as a second shape
 over the element's fill. Refused with one ``InputError`` line, never drawn wrong: gradient
 or pattern paint, semi-transparent paint, text and embedded images, and, before any
-geometry is built, SVGs over ``MAX_SEGMENTS`` segments or with coordinates beyond
-``MAX_COORD`` px. Shapes with ``fill="none"`` and no stroke draw nothing and are skipped.
+geometry is built, SVGs over ``MAX_SEGMENTS`` segments, over ``MAX_ELEMENTS`` elements with
+every ``<use>`` expanded (or with a ``<use>`` cycle), or with coordinates beyond ``MAX_COORD`` px. Shapes with ``fill="none"`` and no stroke draw nothing and are skipped.
 """
 
 from __future__ import annotations
@@ -29,6 +29,8 @@ from .image import VectorImage, VectorShape
 
 MAX_SEGMENTS = 200_000  # path segments in one SVG (an SVG of 1,000,000 took minutes to read)
 MAX_COORD = 1e6  # |coordinate| and canvas side, in px
+MAX_ELEMENTS = 100_000  # elements once every <use> is expanded (nested <use> grows exponentially)
+_XLINK_HREF = "{http://www.w3.org/1999/xlink}href"
 _NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 
 
@@ -53,6 +55,36 @@ def _check_xml(data: bytes) -> None:
     numbers = sum(len(_NUMBER.findall(el.get(a, ""))) for el in root.iter() for a in ("d", "points"))
     if numbers > 6 * MAX_SEGMENTS:
         raise InputError(f"too much path data ({numbers} numbers; at most {MAX_SEGMENTS} segments)")
+    try:
+        _expanded_size(root)
+    except RecursionError:
+        raise InputError("the SVG nests elements too deeply") from None
+
+
+def _expanded_size(root) -> int:
+    """Elements in the document once every ``<use>`` is expanded, refused (``InputError``)
+    past ``MAX_ELEMENTS`` or on a ``<use>`` cycle, before svgelements expands anything."""
+    ids = {el.get("id"): el for el in root.iter() if el.get("id")}
+    memo: dict[int, int] = {}
+    visiting: set[int] = set()
+
+    def size(el) -> int:
+        if id(el) in memo:
+            return memo[id(el)]
+        if id(el) in visiting:
+            raise InputError("a <use> refers to an element that contains it (a cycle)")
+        visiting.add(id(el))
+        n = 1 + sum(size(child) for child in el)
+        ref = el.get("href") or el.get(_XLINK_HREF) or ""
+        if el.tag.rsplit("}", 1)[-1] == "use" and ref.startswith("#") and ref[1:] in ids:
+            n += size(ids[ref[1:]])
+        visiting.discard(id(el))
+        if n > MAX_ELEMENTS:
+            raise InputError(f"too many elements once <use> is expanded (more than {MAX_ELEMENTS})")
+        memo[id(el)] = n
+        return n
+
+    return size(root)
 
 
 def _stroked(el) -> bool:
