@@ -389,6 +389,11 @@ def in_render_use_cycle(d, m):
                       'viewBox="0 0 10 10"><g id="a"><path d="M1 1 L9 1 L9 9 Z"/><use xlink:href="#a"/></g></svg>')
 
 
+def in_render_deep_nesting(d, m):
+    return _render(d, '<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">' + "<g>" * 5000
+                   + '<path d="M1 1 L9 1 L9 9 Z"/>' + "</g>" * 5000 + "</svg>")
+
+
 def in_render_huge_viewbox(d, m):
     return _render(d, _svg("M 1 1 L 9 1 L 9 9 Z", "0 0 100000 100000"))
 
@@ -575,6 +580,7 @@ CASES = {
     "SVG: viewBox of 100000 x 100000": (in_render_huge_viewbox, "error"),
     "SVG: <use> bomb": (in_render_use_bomb, "error"),
     "SVG: <use> cycle": (in_render_use_cycle, "error"),
+    "SVG: 5000 nested groups": (in_render_deep_nesting, "error"),
     "render --scale 1000": (in_render_scale_1000, "error"),
     "render --scale nan": (in_render_scale_nan, "usage"),
     "render --tau nan": (in_render_tau_nan, "usage"),
