@@ -67,9 +67,7 @@ def vectorize(images, model=DEFAULT_MODEL, *, refine: bool = True, effort: str =
     model = _model(model)
     one = not isinstance(images, (list, tuple))
     pictures = [as_image(x) for x in ([images] if one else images)]
-    if segments == "auto" and model.segment_predictor is None:
-        raise ModelError(f"model {getattr(model, 'name', '?')!r} has no segment predictor for segments='auto' "
-                         "(add one with `im2vec train-aux`)")
+    check_segments(model, segments)
     if effort not in refinement.EFFORTS:
         raise ValueError(f"effort must be one of {sorted(refinement.EFFORTS)}, got {effort!r}")
     kw = {"segments": segments, "quality": quality, "max_paths": max_paths}
@@ -84,11 +82,18 @@ def vectorize(images, model=DEFAULT_MODEL, *, refine: bool = True, effort: str =
     return out[0] if one else out
 
 
+def check_segments(model, segments: int | str | None) -> None:
+    """``ModelError`` when ``segments="auto"`` is asked of a model without a segment predictor."""
+    if segments == "auto" and model.segment_predictor is None:
+        raise ModelError(f"model {getattr(model, 'name', '?')!r} has no segment predictor for segments='auto' "
+                         "(add one with `im2vec train-aux`)")
+
+
 def encode(images, model=DEFAULT_MODEL) -> np.ndarray:
     """Latents (posterior means) of a picture or a list of pictures: ``(N, D)`` float32."""
     model = _model(model)
     pictures = [as_image(x) for x in (images if isinstance(images, (list, tuple)) else [images])]
-    return infer.encode(model, pictures).numpy().astype(np.float32)
+    return infer.encode(model, pictures).float().numpy()
 
 
 def _latents(z, model) -> torch.Tensor:

@@ -102,18 +102,33 @@ def plan_outputs(items: list[Item], output: str, suffix: str, single: bool) -> t
 
 
 def refuse_overwrite(outputs: Iterable[str | Path], inputs: Iterable[str | Path]) -> None:
-    """A usage error if an output would replace an input (same path, or same file through a link)."""
+    """A usage error if an output would replace an input (same path, or same file through a
+    link). Inputs are indexed once (real paths and inode numbers), so a folder of N inputs
+    costs O(N), not a comparison per pair."""
     import os
 
-    ins = [(str(i), os.path.realpath(i)) for i in inputs if str(i) not in ("-", "")]
+    by_path, by_inode = {}, {}
+    for i in inputs:
+        if str(i) in ("-", ""):
+            continue
+        by_path[os.path.realpath(i)] = str(i)
+        try:
+            st = os.stat(i)
+            by_inode[(st.st_dev, st.st_ino)] = str(i)
+        except OSError:  # a missing input is reported when it is read
+            pass
     for out in outputs:
         if str(out) == "-":
             continue
-        real = os.path.realpath(out)
-        for name, real_in in ins:
-            same = real == real_in or (os.path.exists(out) and os.path.exists(name) and os.path.samefile(out, name))
-            if same:
-                raise click.UsageError(f"the output {out} is the input {name}: refusing to overwrite an input")
+        name = by_path.get(os.path.realpath(out))
+        if name is None:
+            try:
+                st = os.stat(out)
+                name = by_inode.get((st.st_dev, st.st_ino))
+            except OSError:  # the output does not exist yet: it can only be an input by path
+                pass
+        if name is not None:
+            raise click.UsageError(f"the output {out} is the input {name}: refusing to overwrite an input")
 
 
 Work = Callable[[list[Item]], Iterator[tuple[str, "Im2VecError | None"]]]

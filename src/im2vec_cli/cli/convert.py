@@ -54,9 +54,7 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, refine, effort,
     model = load_model(model_name, device, seed)
     options = {"refine": single if refine is None else refine, "effort": effort, "segments": k, "quality": quality,
                "max_paths": max_paths, "simplify_px": simplify_px}
-    if k == "auto" and model.segment_predictor is None:  # before any file is read
-        raise Im2VecError(f"model {model_name!r} has no segment predictor for --segments auto "
-                          "(add one with `im2vec train-aux`)")
+    api.check_segments(model, k)  # before any file is read
     for note in notes:
         warn(note)
     where = dict(zip((item for item, _ in items), dests))
