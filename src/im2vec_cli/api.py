@@ -44,8 +44,9 @@ def _model(model):
     return load_model(model) if isinstance(model, str) else model
 
 
-def vectorize(images, model=DEFAULT_MODEL, *, refine: bool = True, effort: str = "fast",
-              segments: int | str | None = None, quality: float | None = None, max_paths: int | None = None,
+def vectorize(images, model=DEFAULT_MODEL, *, refine: bool = True, effort: str = "fast", parts: str = "clean",
+              tolerance: float | None = None, colors: int | None = None, segments: int | str | None = None,
+              quality: float | None = None, max_paths: int | None = None,
               simplify_px: float | None = None) -> VectorImage | list[VectorImage]:
     """Vectorize one picture (or a list of them) into closed cubic paths.
 
@@ -55,6 +56,14 @@ def vectorize(images, model=DEFAULT_MODEL, *, refine: bool = True, effort: str =
         refine: fit the paths to each picture through the renderer (``refine.refine``);
             ``False`` gives the model's guess alone, in one batch.
         effort: with ``refine``, ``"fast"`` or ``"best"`` (``refine.EFFORTS``).
+        parts: with ``refine``, ``"clean"`` (each colour one path of non-overlapping outer
+            contours and holes, from the model's paths or the picture's own regions, whichever
+            fits better) or ``"model"`` (the model's own paths, the same for every picture of
+            its class).
+        tolerance: with ``parts="clean"``, how far (input pixels) the cubics may stray from the
+            traced outline before another segment is added (default 0.5); larger is more compact.
+        colors: with ``parts="clean"``, the palette size of a multi-colour picture (default:
+            as many as its flat areas need, at most 16; 1: two-tone).
         segments: cubic segments per path (default: the model's), or ``"auto"`` (the model's
             segment predictor chooses per path at ``quality``).
         max_paths: keep at most this many paths (the largest).
@@ -70,13 +79,24 @@ def vectorize(images, model=DEFAULT_MODEL, *, refine: bool = True, effort: str =
     check_segments(model, segments)
     if effort not in refinement.EFFORTS:
         raise ValueError(f"effort must be one of {sorted(refinement.EFFORTS)}, got {effort!r}")
+    if parts not in refinement.PARTS:
+        raise ValueError(f"parts must be one of {refinement.PARTS}, got {parts!r}")
+    if tolerance is not None and not (np.isfinite(tolerance) and tolerance > 0):
+        raise ValueError(f"tolerance must be a positive number of pixels, got {tolerance!r}")
+    if colors is not None and not (isinstance(colors, (int, np.integer)) and 1 <= colors <= 64):
+        raise ValueError(f"colors must be an integer in [1, 64], got {colors!r}")
+    if max_paths is not None and not (isinstance(max_paths, (int, np.integer)) and max_paths >= 1):
+        raise ValueError(f"max_paths must be an integer >= 1, got {max_paths!r}")
     kw = {"segments": segments, "quality": quality, "max_paths": max_paths}
     if refine:
         settings = refinement.EFFORTS[effort]
         if simplify_px is not None:
             settings = dataclasses.replace(settings, simplify_tol=simplify_px)
+        if tolerance is not None:
+            settings = dataclasses.replace(settings, tolerance=float(tolerance))
         with compiling(False):  # every input shape would recompile: far more than it saves
-            out = [refinement.refine(model, p, settings=settings, **kw)[0] for p in pictures]
+            out = [refinement.refine(model, p, settings=settings, parts=parts, colors=colors, **kw)[0]
+                   for p in pictures]
     else:
         out = [simplify(v, simplify_px or 0.0) for v in infer.vectorize(model, pictures, **kw)]
     return out[0] if one else out

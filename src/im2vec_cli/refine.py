@@ -20,6 +20,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import numpy as np
 import torch
 import torch.nn.functional as F
 
@@ -28,7 +29,13 @@ from .infer import flat_result, model_input, segment_counts, to_vector
 from .model.vae import Im2Vec
 from .optim import Adam
 from .raster import gaussian_pyramid, polygon_area, pyramid_l2, render_pyramid, segment_controls
-from .vector import VectorImage, VectorShape, resolve_overlaps, simplify
+from .raster.bezier import bernstein_weights
+from .vector import VectorImage, VectorShape, rasterize_svg, resolve_overlaps, simplify
+from .vector.fit import split_segments
+from .vector.outline import Corners, redrawn, traced
+from .vector.trace import background_color, two_tone
+
+PARTS = ("clean", "model")  # `vectorize --parts`: clean outlines (default) or the model's own paths
 
 
 @dataclass(frozen=True)
@@ -57,6 +64,12 @@ class RefineSettings:
     polish_steps: int = 40  # points-only steps after simplifying
     polish_samples: int = 12  # lines per cubic in the polish: merged segments are long, and too coarse a
     # polygon lets the fit bend the true curve away from the edge (IoU@4x 0.972 with the model's 4)
+    tolerance: float = 0.5  # clean outlines: cubics fitted within this many input px of the traced/united ring
+    outline_steps: int = 40  # clean outlines: points (and colours) polished against the input...
+    outline_tau: float = 0.3  # ...from this edge softness, annealed to tau_end
+    split_error: float = 0.01  # then segments along which the render is still this wrong (MSE) are halved and
+    # the polish repeated (0: never)
+    max_segments: int = 200  # per contour, splitting stops here
 
 
 # Named efforts (`vectorize --effort`, whose choices cli.py spells out to keep torch out of
@@ -67,8 +80,8 @@ class RefineSettings:
 # 0.9914 / 0.00018 in 1.01 s; potrace 0.9524 / 0.00283), so that one `vectorize` fits in about 2 s
 # with torch's import.
 EFFORTS = {
-    "fast": RefineSettings(latent_steps=5, point_steps=25, polish_steps=15, polish_samples=8),
-    "best": RefineSettings(),
+    "fast": RefineSettings(latent_steps=5, point_steps=25, polish_steps=15, polish_samples=8, outline_steps=25),
+    "best": RefineSettings(split_error=0.005),
 }
 
 
@@ -158,10 +171,13 @@ class _Fitter:
             return float(self.loss(t.points, t.colors, t.depth, t.shape_index, t.fill_rule, tau))
 
     def fit_points(self, vec: VectorImage, steps: int, tau_start: float, learn_colors: bool, stage: str,
-                   on_step) -> tuple[VectorImage, int]:
+                   on_step, smooth: Corners | None = None) -> tuple[VectorImage, int]:
         """Adam on the control points (and colours) of ``vec``, annealing tau to ``tau_end``.
 
-        Returns the best result at the final tau and the steps taken."""
+        ``smooth``: per contour the corner flags of ``vector.fit.fit_ring``; after every step
+        the two handles of each smooth join are made collinear again (projected gradient
+        descent), so the fit keeps the joins' smoothness. Returns the best result at the
+        final tau and the steps taken."""
         s = self.s
         if not vec.shapes or steps <= 0:
             return vec, 0
@@ -172,6 +188,7 @@ class _Fitter:
         if learn_colors:
             groups.append({"params": [cols], "lr": s.color_lr})
         opt = Adam(groups)
+        joins = None if smooth is None else _smooth_joins(vec, smooth, pts.device)
         anneal = int(0.6 * steps) if tau_start != s.tau_end else 0
         hist: list[float] = []
         best, best_pts, best_cols = float("inf"), pts.detach().clone(), cols.detach().clone()
@@ -184,6 +201,8 @@ class _Fitter:
             opt.zero_grad()
             loss.backward()
             opt.step()
+            if joins is not None:
+                _align(pts, joins, self.size)
             if on_step:
                 on_step({"stage": stage, "step": i, "loss": fit.item(), "tau": tau})
             if i >= anneal:  # compare losses only at the final tau
@@ -212,6 +231,35 @@ class _Fitter:
                 removed.add(gc)
                 current = min(current, loss)
         return _without(vec, removed)
+
+
+def _smooth_joins(vec: VectorImage, flags: Corners, device) -> torch.Tensor:
+    """``(4, J)`` indices (path, anchor, handle before, handle after) of the smooth joins of
+    ``vec``'s contours, in ``_Paths`` order."""
+    rows, p = [], 0
+    for sh, fl in zip(vec.shapes, flags):
+        for c, f in zip(sh.contours, fl):
+            n = len(c)
+            rows += [(p, 3 * k, (3 * k - 1) % n, 3 * k + 1) for k in np.nonzero(~np.asarray(f, dtype=bool))[0]]
+            p += 1
+    return torch.tensor(rows, dtype=torch.long, device=device).reshape(-1, 4).T
+
+
+def _align(pts: torch.Tensor, joins: torch.Tensor, size: tuple[int, int]) -> None:
+    """In place on ``pts (1, P, 3K, 2)`` (input-normalised): each smooth join's handles made
+    collinear through its anchor (in pixels), their lengths kept."""
+    if not joins.shape[1]:
+        return
+    with torch.no_grad():
+        scale = torch.tensor([size[1], size[0]], dtype=pts.dtype, device=pts.device)
+        p, a, b, c = joins
+        anchor, before, after = pts[0, p, a] * scale, pts[0, p, b] * scale, pts[0, p, c] * scale
+        la, lb = (after - anchor).norm(dim=-1, keepdim=True), (anchor - before).norm(dim=-1, keepdim=True)
+        t = (after - anchor) / la.clamp_min(1e-9) + (anchor - before) / lb.clamp_min(1e-9)
+        t = t / t.norm(dim=-1, keepdim=True).clamp_min(1e-9)
+        ok = ((la > 1e-6) & (lb > 1e-6)).expand_as(t)
+        pts[0, p, c] = torch.where(ok, anchor + la * t, after) / scale
+        pts[0, p, b] = torch.where(ok, anchor - lb * t, before) / scale
 
 
 def _anchor_area(c) -> float:
@@ -302,6 +350,42 @@ class Refinement:
         return self.fine.fit_points(simplify(vec, self.s.simplify_tol), self.s.polish_steps, self.s.tau_end, False,
                                     "polish", self.on_step)
 
+    def polish_outline(self, vec: VectorImage, flags: Corners) -> VectorImage:
+        """Clean outlines: points and colours polished for ``outline_steps``, smooth joins kept smooth."""
+        return self.fine.fit_points(vec, self.s.outline_steps, self.s.outline_tau, True, "outline", self.on_step,
+                                    smooth=flags)[0]
+
+    def split_where_wrong(self, vec: VectorImage, flags: Corners) -> tuple[VectorImage, Corners, int]:
+        """Halve every segment along which the render still differs from the input by more
+        than ``split_error`` (mean squared, over the pixels the segment passes, cairo at the
+        input's size): the polish then has the points it lacked there.
+
+        Returns the new image, its corner flags and the segments split."""
+        from scipy.ndimage import uniform_filter
+
+        _, h, w = self.image.shape
+        got = rasterize_svg(vec.to_svg(3), w, h)  # (H, W, 3)
+        err = ((got - self.image.permute(1, 2, 0).double().cpu().numpy()) ** 2).sum(-1)
+        err = uniform_filter(err, 3)
+        weights = bernstein_weights(8, dtype=torch.float64, device=torch.device("cpu")).numpy()  # (8, 4)
+        shapes, out_flags, count = [], [], 0
+        for sh, fl in zip(vec.shapes, flags):
+            cs, fs = [], []
+            for c, f in zip(sh.contours, fl):
+                segs = segment_controls(torch.from_numpy(np.asarray(c, dtype=np.float64))).numpy()  # (S, 4, 2)
+                pts = np.einsum("tk,skc->stc", weights, segs)  # (S, 8, 2)
+                ix = np.clip(pts[..., 0].astype(int), 0, w - 1)
+                iy = np.clip(pts[..., 1].astype(int), 0, h - 1)
+                bad = np.nonzero(err[iy, ix].mean(1) > self.s.split_error)[0]
+                if len(bad) and len(c) // 3 + len(bad) <= self.s.max_segments:
+                    c, f = split_segments(c, f, bad)
+                    count += len(bad)
+                cs.append(c)
+                fs.append(f)
+            shapes.append(VectorShape(cs, sh.color, sh.fill_rule))
+            out_flags.append(fs)
+        return VectorImage(vec.width, vec.height, shapes), out_flags, count
+
     def loss(self, vec: VectorImage) -> float:
         """The judge: pyramid L2 at ``tau_end`` with ``polish_samples`` lines per cubic."""
         return self.fine.vector_loss(vec, self.s.tau_end)
@@ -311,6 +395,8 @@ def refine(
     model: Im2Vec,
     image: torch.Tensor,
     *,
+    parts: str = "clean",
+    colors: int | None = None,
     segments: int | str | torch.Tensor | None = None,
     quality: float | None = None,
     max_paths: int | None = None,
@@ -319,16 +405,28 @@ def refine(
 ) -> tuple[VectorImage, dict]:
     """Vectorise one image ``(3, H, W)`` in [0, 1] and refine the result against it.
 
-    ``segments`` / ``quality`` as in ``infer.vectorize`` (``"auto"``: per-path counts).
+    ``parts="model"`` keeps the model's own paths (the same P paths in the same order for
+    every image of a class): the latent stage, the point stage, pruning, simplifying and a
+    polish. ``parts="clean"`` (the default) writes clean outlines instead: two starts, each
+    polished through the renderer, the one nearer the image kept:
+
+    - the model's refined paths, each shape redrawn as clean rings (``vector.outline.redrawn``),
+      with the pieces and holes of a two-tone image that the model missed added or cut out;
+    - the image's own regions traced (``vector.outline.traced``; ``colors`` sets the palette).
+
+    Both are shapes of non-overlapping outer contours and holes, fitted with cubics within
+    ``settings.tolerance`` input pixels, corners kept sharp. ``segments`` / ``quality`` as in
+    ``infer.vectorize`` (``"auto"``: per-path counts) shape the model's paths.
 
     Returns:
         The vector image (input pixel frame) and a summary: the pyramid L2 of the model's
-        guess (after the latent stage) and of the result (at ``tau_end``), the steps taken in
-        each stage, and the segments before and after simplifying. The result is never worse
-        than the model's guess: if the point stages end above it, the guess is returned.
+        guess (after the latent stage) and of the result (at ``tau_end``), the steps taken,
+        the segments, and with ``parts="clean"`` which start was kept (``"start"``).
     """
     if image.dim() != 3 or image.shape[0] != 3:
         raise ValueError(f"image must be (3, H, W), got {tuple(image.shape)}")
+    if parts not in PARTS:
+        raise ValueError(f"parts must be one of {PARTS}, got {parts!r}")
     flat = flat_result(image)
     if flat is not None:  # nothing to fit: the same answer as amortised vectorisation
         return flat, {"loss_start": 0.0, "loss_end": 0.0, "latent_steps": 0, "point_steps": 0}
@@ -338,19 +436,67 @@ def refine(
         p.requires_grad_(False)
     try:
         with torch.enable_grad():
-            mu, place, k = run.encode(segments, quality)
-            z, latent_steps = run.fit_latent(mu, k, place)
-            guess = run.decode(z, k, place, max_paths)
-            start = run.loss(guess)
-            vec, point_steps = run.fit_points(guess)
-            vec = run.prune(vec)
-            fitted_segments = vec.num_segments
-            vec, polish_steps = run.simplify_and_polish(vec)
-            end = run.loss(vec)
+            if parts == "model":
+                vec, info = _model_paths(run, segments, quality, max_paths)
+            else:
+                vec, info = _clean(run, segments, quality, colors, max_paths)
     finally:
         for p, r in zip(model.parameters(), req):
             p.requires_grad_(r)
+    return vec, info
+
+
+def _model_paths(run: Refinement, segments, quality, max_paths, outline: bool = False) -> tuple[VectorImage, dict]:
+    """The model's paths refined (``parts="model"``); never worse than the model's guess.
+
+    ``outline``: stop after the point stage (the paths are then united and refitted)."""
+    mu, place, k = run.encode(segments, quality)
+    z, latent_steps = run.fit_latent(mu, k, place)
+    guess = run.decode(z, k, place, max_paths)
+    start = run.loss(guess)
+    vec, point_steps = run.fit_points(guess)
+    if outline:
+        return vec, {"loss_start": start, "latent_steps": latent_steps, "point_steps": point_steps}
+    vec = run.prune(vec)
+    fitted_segments = vec.num_segments
+    vec, polish_steps = run.simplify_and_polish(vec)
+    end = run.loss(vec)
     if end > start:  # refinement never makes the result worse than the model's guess
-        vec, end = simplify(guess, settings.simplify_tol), start
+        vec, end = simplify(guess, run.s.simplify_tol), start
     return vec, {"loss_start": start, "loss_end": end, "latent_steps": latent_steps, "point_steps": point_steps,
                  "polish_steps": polish_steps, "segments_fitted": fitted_segments, "segments": vec.num_segments}
+
+
+def _clean(run: Refinement, segments, quality, colors: int | None, max_paths: int | None) -> tuple[VectorImage, dict]:
+    """Clean outlines from the image's regions and, for a two-tone image, from the model's
+    refined paths; the start nearer the image is polished (and split where still wrong)."""
+    picture = run.image.permute(1, 2, 0).double().cpu().numpy()  # (H, W, 3)
+    tol = run.s.tolerance
+    # The contours of a clean shape do not overlap, so even-odd renders them as nonzero does,
+    # without the renderer's boundary search (seconds on a picture of many regions); written nonzero.
+    starts = {"image": _with_rule(*traced(picture, tol, colors, max_paths), "evenodd")}
+    info: dict = {}
+    if colors in (None, 1) and two_tone(picture, background_color(picture)) is not None:
+        # Multi-colour pictures: the shipped emoji model's paths lost to the image's own regions on
+        # every OpenMoji face tried (bench/outlines.py) and cost seconds, so only the image is traced.
+        model_vec, info = _model_paths(run, segments, quality, max_paths, outline=True)
+        if model_vec.shapes:
+            starts["model"] = _with_rule(*redrawn(model_vec, tol, picture), "evenodd")
+    scored = sorted((run.loss(vec), name) for name, (vec, _) in starts.items() if vec.shapes)
+    if not scored:  # nothing to draw
+        return VectorImage(picture.shape[1], picture.shape[0], []), {**info, "loss_end": 0.0, "segments": 0}
+    name = scored[0][1]  # the polish moves points by a fraction of a pixel: it does not reorder the starts
+    vec, flags = starts[name]
+    vec = run.polish_outline(vec, flags)
+    if run.s.split_error > 0:
+        more, flags, n = run.split_where_wrong(vec, flags)
+        if n:
+            more = run.polish_outline(more, flags)
+            if run.loss(more) < run.loss(vec):
+                vec = more
+    return _with_rule(vec, None, "nonzero")[0], {**info, "loss_end": run.loss(vec), "start": name,
+                                                 "segments": vec.num_segments}
+
+
+def _with_rule(vec: VectorImage, flags, rule: str):
+    return VectorImage(vec.width, vec.height, [VectorShape(sh.contours, sh.color, rule) for sh in vec.shapes]), flags

@@ -13,6 +13,7 @@ from .streams import load_input_image, read_input, write_output
 VECTORIZE_CHUNK = 32  # images per forward pass in batch mode (bounded memory, amortised model calls)
 MAX_SVG_BYTES = 32 * 2**20  # `render` input: an SVG larger than this is refused while reading
 EFFORTS = ["fast", "best"]  # refine.EFFORTS, spelled out so that `--help` does not import torch
+PARTS = ["clean", "model"]  # refine.PARTS, likewise
 
 
 @cli.command(epilog=EXIT_HELP)
@@ -20,7 +21,17 @@ EFFORTS = ["fast", "best"]  # refine.EFFORTS, spelled out so that `--help` does 
 @click.option("-o", "--output", default="-", show_default=True, callback=nonempty,
               help="SVG file or - for one input; a folder for several inputs or a folder input.")
 @click.option("--segments", default=None, help="Cubic segments per path (default: the model's).")
-@click.option("--paths", "max_paths", type=click.IntRange(1), default=None, help="Keep at most N paths (the largest).")
+@click.option("--max-paths", "--paths", "max_paths", type=click.IntRange(1), default=None,
+              help="Keep at most N paths (the largest).")
+@click.option("--parts", type=click.Choice(PARTS), default="clean", show_default=True,
+              help="With refinement: clean (each colour one path of outer contours and holes, no overlaps; from "
+                   "the model's paths or the image's own regions, whichever fits better) or model (the model's own "
+                   "paths, the same for every image of its class: for animation and the latent space).")
+@click.option("--tolerance", type=Finite(0, min_open=True), default=None,
+              help="With --parts clean: how far (input px) a curve may stray from the traced outline before a "
+                   "segment is added; smaller is more exact, larger more compact. [0.5]")
+@click.option("--colors", type=click.IntRange(1, 64), default=None,
+              help="With --parts clean: palette size for a multi-colour image (1: two-tone). [auto, at most 16]")
 @click.option("--quality", type=Finite(0, min_open=True), default=None,
               help="With --segments auto: the error one more segment must remove to be added (MSE on coverage) "
                    "[5e-4]; smaller is more exact, larger more compact.")
@@ -34,8 +45,8 @@ EFFORTS = ["fast", "best"]  # refine.EFFORTS, spelled out so that `--help` does 
               help="Merge segments while the outline moves less than this many input pixels. [0.25 with --refine, else 0]")
 @model_options
 @click.pass_context
-def vectorize(ctx, inputs, output, segments, quality, max_paths, refine, effort, simplify_px, model_name, device,
-              seed):
+def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, tolerance, colors, refine, effort, simplify_px,
+              model_name, device, seed):
     """Vectorize images (PNG/JPG, any size) into SVGs of closed cubic paths.
 
     The SVG's viewBox is the input's pixel grid, so it overlays the input exactly.
@@ -53,7 +64,8 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, refine, effort,
     dests, notes = plan_outputs(items, output, ".svg", single)
     model = load_model(model_name, device, seed)
     options = {"refine": single if refine is None else refine, "effort": effort, "segments": k, "quality": quality,
-               "max_paths": max_paths, "simplify_px": simplify_px}
+               "max_paths": max_paths, "simplify_px": simplify_px, "parts": parts, "tolerance": tolerance,
+               "colors": colors}
     api.check_segments(model, k)  # before any file is read
     for note in notes:
         warn(note)

@@ -1,0 +1,208 @@
+"""Closed polygons to closed cubic contours: few segments, sharp corners, within a tolerance.
+
+A ring from ``trace.py`` (or a flattened outline) is resampled at even arc length, its
+*corners* are found (a turn that happens within a short arc: a serif or a stem end, not the
+round end of a stroke), and each run between corners is fitted with as few cubics as keep
+every sample within ``tol`` pixels (least squares on the two tangent lengths with fixed end
+tangents, Newton re-parametrisation, split at the worst sample: Schneider, "An algorithm for
+automatically fitting digitized curves", Graphics Gems 1990). Joins inside a run share their
+tangent (smooth); joins at corners do not. Straight runs become one straight cubic.
+
+Frame: pixel coordinates; contours use the wrap-around cubic layout ``(3S, 2)`` of
+``raster/bezier.py`` (anchor, control, control per segment; the last segment ends at point 0).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..raster.bezier import cubic_at
+
+STEP = 0.5  # resampling step along the ring (px)
+NEAR, FAR = 1.5, 3.0  # arc lengths (px) over which a turn is measured
+CORNER_DEG = 50.0  # a turn of at least this within NEAR...
+CONCENTRATION = 1.5  # ...that grows less than this much over FAR is a corner
+
+
+def resample(ring: np.ndarray, step: float = STEP) -> np.ndarray:
+    """Points every ``step`` px along a closed ring ``(N, 2)`` (at least 8): ``(M, 2)``."""
+    closed = np.vstack([ring, ring[:1]])
+    seg = np.hypot(*np.diff(closed, axis=0).T)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    m = max(8, int(np.ceil(s[-1] / step)))
+    t = np.linspace(0, s[-1], m, endpoint=False)
+    return np.stack([np.interp(t, s, closed[:, 0]), np.interp(t, s, closed[:, 1])], 1)
+
+
+def _turn(pts: np.ndarray, k: int) -> np.ndarray:
+    """Turning angle (degrees) at each point of a closed ring between the chords to +-k points."""
+    a = pts - np.roll(pts, k, 0)
+    b = np.roll(pts, -k, 0) - pts
+    cos = (a * b).sum(1) / np.maximum(np.hypot(*a.T) * np.hypot(*b.T), 1e-12)
+    return np.degrees(np.arccos(np.clip(cos, -1, 1)))
+
+
+def corners(pts: np.ndarray, step: float = STEP, degrees: float = CORNER_DEG) -> np.ndarray:
+    """Indices of the corners of an evenly resampled closed ring ``(M, 2)``, ascending."""
+    n = len(pts)
+    near, far = max(1, round(NEAR / step)), max(2, round(FAR / step))
+    if n < 2 * far + 2:
+        return np.zeros(0, dtype=np.int64)
+    a_near, a_far = _turn(pts, near), _turn(pts, far)
+    cand = (a_near >= degrees) & (a_far <= CONCENTRATION * a_near)
+    out = []
+    for i in np.nonzero(cand)[0]:  # local maxima of the near turn
+        window = [(i + d) % n for d in range(-near, near + 1)]
+        if a_near[i] >= a_near[window].max() and not any((i - j) % n <= near for j in out[-1:]):
+            out.append(i)
+    if len(out) > 1 and (out[0] - out[-1]) % n <= near:
+        out.pop()
+    return np.array(sorted(out), dtype=np.int64)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = np.hypot(*v)
+    return v / n if n > 1e-12 else v
+
+
+def _end_tangent(pts: np.ndarray, at_start: bool, reach: int) -> np.ndarray:
+    """Unit tangent leaving the first point (or entering the last, pointing back) of a run."""
+    seq = pts if at_start else pts[::-1]
+    k = min(reach, len(seq) - 1)
+    return _unit(seq[1 : k + 1].mean(0) - seq[0])
+
+
+def _lsq(pts: np.ndarray, u: np.ndarray, t0: np.ndarray, t1: np.ndarray) -> np.ndarray:
+    """Cubic through ``pts[0]`` and ``pts[-1]`` with end tangents ``t0``/``t1``, least squares: ``(4, 2)``."""
+    p0, p3 = pts[0], pts[-1]
+    chord = np.hypot(*(p3 - p0))
+    b = np.stack([(1 - u) ** 3, 3 * (1 - u) ** 2 * u, 3 * (1 - u) * u**2, u**3], 1)
+    a1, a2 = b[:, 1:2] * t0, b[:, 2:3] * t1
+    rest = pts - (b[:, 0:1] + b[:, 1:2]) * p0 - (b[:, 2:3] + b[:, 3:4]) * p3
+    m = np.array([[np.sum(a1 * a1), np.sum(a1 * a2)], [np.sum(a1 * a2), np.sum(a2 * a2)]])
+    r = np.array([np.sum(a1 * rest), np.sum(a2 * rest)])
+    try:
+        alpha = np.linalg.solve(m, r)
+    except np.linalg.LinAlgError:
+        alpha = np.array([chord / 3, chord / 3])
+    if not ((alpha > 1e-3 * chord) & (alpha < 2 * chord + 1)).all():
+        alpha = np.array([chord / 3, chord / 3])
+    return np.stack([p0, p0 + alpha[0] * t0, p3 + alpha[1] * t1, p3])
+
+
+def _newton(ctrl: np.ndarray, pts: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """One Newton step per sample towards its nearest point on the cubic."""
+    d1 = 3 * np.diff(ctrl, axis=0)
+    d2 = 2 * np.diff(d1, axis=0)
+    t = u[:, None]
+    q = cubic_at(ctrl, u) - pts
+    q1 = (1 - t) ** 2 * d1[0] + 2 * (1 - t) * t * d1[1] + t**2 * d1[2]
+    q2 = (1 - t) * d2[0] + t * d2[1]
+    den = (q1 * q1).sum(1) + (q * q2).sum(1)
+    ok = np.abs(den) > 1e-12
+    return np.clip(u - np.where(ok, (q * q1).sum(1) / np.where(ok, den, 1), 0), 0, 1)
+
+
+def _line(p0: np.ndarray, p3: np.ndarray) -> np.ndarray:
+    return np.stack([p0, p0 + (p3 - p0) / 3, p0 + 2 * (p3 - p0) / 3, p3])
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> float:
+    return float(a[0] * b[1] - a[1] * b[0])
+
+
+def _line_error(pts: np.ndarray) -> float:
+    p0, d = pts[0], pts[-1] - pts[0]
+    n = np.hypot(*d)
+    if n < 1e-12:
+        return float(np.hypot(*(pts - p0).T).max())
+    return float(np.abs((pts[:, 0] - p0[0]) * d[1] - (pts[:, 1] - p0[1]) * d[0]).max() / n)
+
+
+def fit_run(pts: np.ndarray, t0: np.ndarray, t1: np.ndarray, tol: float, depth: int = 0) -> list[np.ndarray]:
+    """Cubics ``(4, 2)`` from ``pts[0]`` to ``pts[-1]`` leaving along ``t0`` and arriving
+    against ``t1``, every point of ``pts (N, 2)`` within ``tol`` px of them."""
+    chord = pts[-1] - pts[0]
+    straight = _line_error(pts) <= tol
+    if straight and (depth == 0 or min(abs(_cross(t0, chord)), abs(_cross(t1, chord))) <= 0.02 * np.hypot(*chord)):
+        return [_line(pts[0], pts[-1])]  # a straight run (a split piece only if its tangents allow it)
+    if len(pts) <= 3:
+        n = np.hypot(*chord) / 3
+        return [np.stack([pts[0], pts[0] + n * t0, pts[-1] + n * t1, pts[-1]])]
+    seg = np.hypot(*np.diff(pts, axis=0).T)
+    u = np.concatenate([[0.0], np.cumsum(seg)]) / max(seg.sum(), 1e-12)
+    for _ in range(4):
+        ctrl = _lsq(pts, u, t0, t1)
+        u = _newton(ctrl, pts, u)
+    err = np.hypot(*(cubic_at(ctrl, u) - pts).T)
+    if err.max() <= tol or depth > 24:
+        return [ctrl]
+    i = int(np.clip(np.argmax(err), 2, len(pts) - 3))
+    tc = _unit(pts[i + 2] - pts[i - 2])  # the split is a smooth join
+    return fit_run(pts[: i + 1], t0, -tc, tol, depth + 1) + fit_run(pts[i:], tc, t1, tol, depth + 1)
+
+
+def fit_ring(ring: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """A closed ring ``(N, 2)`` as a closed cubic contour within ``tol`` px.
+
+    Returns:
+        ``(3S, 2)`` control points (same orientation as ``ring``) and ``(S,)`` bool, true where
+        anchor ``i`` is a corner (a join whose tangents may differ).
+    """
+    pts = resample(np.asarray(ring, dtype=np.float64))
+    cs = corners(pts)
+    n, reach = len(pts), max(2, round(1.5 / STEP))
+    if len(cs) == 0:  # one smooth run, starting where the ring turns most
+        start = int(np.argmax(_turn(pts, 2)))
+        loop = np.roll(pts, -start, 0)
+        t = _unit(loop[2] - loop[-2])
+        segs = fit_run(np.vstack([loop, loop[:1]]), t, -t, tol)
+        sharp = [False] * len(segs)
+    else:
+        segs, sharp = [], []
+        for a, b in zip(cs, np.roll(cs, -1)):
+            run = pts[np.arange(a, a + ((b - a) % n or n) + 1) % n]
+            part = fit_run(run, _end_tangent(run, True, reach), _end_tangent(run, False, reach), tol)
+            segs += part
+            sharp += [True] + [False] * (len(part) - 1)
+    return np.concatenate([c[:3] for c in segs]), np.array(sharp)
+
+
+def align_joins(contour: np.ndarray, sharp: np.ndarray) -> np.ndarray:
+    """Make each smooth join's two handles collinear again (after an unconstrained polish).
+
+    ``contour (3S, 2)``; ``sharp (S,)`` as ``fit_ring`` returns. Handle lengths are kept.
+    """
+    out = np.array(contour, dtype=np.float64)
+    n = len(out)
+    for s in np.nonzero(~np.asarray(sharp, dtype=bool))[0]:
+        a, before, after = out[3 * s], out[(3 * s - 1) % n], out[3 * s + 1]
+        la, lb = np.hypot(*(after - a)), np.hypot(*(a - before))
+        if la < 1e-9 or lb < 1e-9:
+            continue
+        t = _unit((after - a) / la + (a - before) / lb)
+        out[3 * s + 1], out[(3 * s - 1) % n] = a + la * t, a - lb * t
+    return out
+
+
+def split_segments(contour: np.ndarray, sharp: np.ndarray, which: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Split segments ``which`` (indices) of a closed contour ``(3S, 2)`` in half (de Casteljau:
+    the outline does not move; the new anchors are smooth joins).
+
+    Returns:
+        The new contour and its corner flags, as ``fit_ring`` gives them.
+    """
+    n = len(contour)
+    segs, flags, todo = [], [], set(int(i) for i in which)
+    for s in range(n // 3):
+        ctrl = np.stack([contour[3 * s], contour[3 * s + 1], contour[3 * s + 2], contour[(3 * s + 3) % n]])
+        if s in todo:
+            p01, p12, p23 = (ctrl[0] + ctrl[1]) / 2, (ctrl[1] + ctrl[2]) / 2, (ctrl[2] + ctrl[3]) / 2
+            q0, q1 = (p01 + p12) / 2, (p12 + p23) / 2
+            mid = (q0 + q1) / 2
+            segs += [np.stack([ctrl[0], p01, q0]), np.stack([mid, q1, p23])]
+            flags += [bool(sharp[s]), False]
+        else:
+            segs.append(ctrl[:3])
+            flags.append(bool(sharp[s]))
+    return np.concatenate(segs), np.array(flags)
