@@ -45,13 +45,12 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 sys.path.insert(0, str(ROOT / "bench"))
 
-from vectorize import potrace, svg_structure  # noqa: E402
-
 from im2vec_cli import api  # noqa: E402
 from im2vec_cli.data.fonts import find_fonts, render_png  # noqa: E402
 from im2vec_cli.data.glyphs import glyph_image  # noqa: E402
 from im2vec_cli.files import encode_png, load_image  # noqa: E402
 from im2vec_cli.vector import rasterize_svg, to_svg  # noqa: E402
+from vectorize import potrace, svg_structure  # noqa: E402
 
 SIZE, UP = 64, 4
 CHARS = "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789"

@@ -422,6 +422,34 @@ def in_quality_nan(d, m):
     return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--quality", "nan"], None
 
 
+def in_tolerance_nan(d, m):
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--tolerance", "nan"], None
+
+
+def in_tolerance_negative(d, m):
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--tolerance", "-1"], None
+
+
+def in_tolerance_zero(d, m):
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--tolerance", "0"], None
+
+
+def in_colors_zero(d, m):
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--colors", "0"], None
+
+
+def in_colors_too_many(d, m):
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--colors", "1000"], None
+
+
+def in_max_paths_zero(d, m):
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--max-paths", "0"], None
+
+
+def in_parts_unknown(d, m):
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--parts", "some"], None
+
+
 def in_simplify_nan(d, m):
     return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--simplify", "nan"], None
 
@@ -587,6 +615,13 @@ CASES = {
     "render onto its input": (in_render_onto_its_input, "usage"),
     "--quality nan": (in_quality_nan, "usage"),
     "--simplify nan": (in_simplify_nan, "usage"),
+    "--tolerance nan": (in_tolerance_nan, "usage"),
+    "--tolerance -1": (in_tolerance_negative, "usage"),
+    "--tolerance 0": (in_tolerance_zero, "usage"),
+    "--colors 0": (in_colors_zero, "usage"),
+    "--colors 1000": (in_colors_too_many, "usage"),
+    "--max-paths 0": (in_max_paths_zero, "usage"),
+    "--parts some": (in_parts_unknown, "usage"),
     "--temperature inf": (in_temperature_inf, "usage"),
     "seed beyond 64 bits": (in_seed_beyond_64_bits, "usage"),
     "negative seed": (in_negative_seed, "usage"),

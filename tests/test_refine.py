@@ -56,11 +56,11 @@ def test_efforts_trade_steps_for_error_on_real_glyphs():
     amortised, fast, best = [], [], []
     for f in sorted(ASSETS.glob("*.png"))[4:8]:
         img = load_image(f)
-        vec, info = refine(model, img, settings=fast_s)
+        vec, info = refine(model, img, settings=fast_s, parts="model")
         assert info["latent_steps"] <= fast_s.latent_steps and info["point_steps"] <= fast_s.point_steps
         assert info["polish_steps"] <= fast_s.polish_steps
         fast.append(_cairo_mse(vec, img))
-        best.append(_cairo_mse(refine(model, img, settings=EFFORTS["best"])[0], img))
+        best.append(_cairo_mse(refine(model, img, settings=EFFORTS["best"], parts="model")[0], img))
         amortised.append(_cairo_mse(vectorize(model, [img])[0], img))
     assert np.mean(fast) < 0.7 * np.mean(amortised), (amortised, fast)
     assert np.mean(best) < np.mean(fast), (fast, best)
@@ -94,8 +94,8 @@ HELD_OUT = Path("/usr/share/fonts/truetype/liberation/LiberationSansNarrow-Regul
                     reason="needs the shipped fonts model and fonts-liberation")
 def test_refined_glyphs_match_the_true_outline():
     """Against the font's own outline (fontTools), not our renderer: glyphs of a family held
-    out of training, IoU at 4x. The default keeps the outline (>= 0.975); the compact preset
-    halves the segments of the model's decode and stays close (>= 0.97)."""
+    out of training, IoU at 4x. The model's own parts keep the outline (>= 0.975); the compact
+    preset halves the segments of the model's decode and stays close (>= 0.97)."""
     from fontTools.ttLib import TTFont
 
     from im2vec_cli.data.fonts import render_png
@@ -110,8 +110,8 @@ def test_refined_glyphs_match_the_true_outline():
         truth = to_svg(glyph_image(font, ch, size=64, margin=4.0), 3)
         img = load_image(f"{ch}.png", render_png(truth, 64))
         ref = svg_mask(truth, 256)
-        vec, _ = refine(model, img)
-        small, _ = refine(model, img, segments="auto", quality=2e-3, settings=compact)
+        vec, _ = refine(model, img, parts="model")
+        small, _ = refine(model, img, segments="auto", quality=2e-3, settings=compact, parts="model")
         ious.append(outline_iou(svg_mask(to_svg(vec), 256), ref))
         ious_c.append(outline_iou(svg_mask(to_svg(small), 256), ref))
         segs.append(vec.num_segments)

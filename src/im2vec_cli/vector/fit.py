@@ -60,6 +60,32 @@ def corners(pts: np.ndarray, step: float = STEP, degrees: float = CORNER_DEG) ->
     return np.array(sorted(out), dtype=np.int64)
 
 
+def sharpen(pts: np.ndarray, idx: np.ndarray, near: float = 1.0, far: float = 3.0, reach: float = 0.75,
+            step: float = STEP) -> np.ndarray:
+    """Move each corner ``idx`` of a resampled ring to where its two sides meet.
+
+    A traced corner is cut off (the 0.5 level of an anti-aliased corner runs diagonally
+    across its pixel); the sides' lines, fitted between ``near`` and ``far`` px from the corner,
+    meet at the true corner. A move of more than ``reach`` px (nearly parallel sides, or a
+    feature too small for its sides to be lines) is not made.
+    """
+    out = pts.copy()
+    n, k1, k2 = len(pts), max(1, round(near / step)), max(2, round(far / step))
+    for i in idx:
+        p_in, q_in = pts[(i - k2) % n], pts[(i - k1) % n]
+        p_out, q_out = pts[(i + k1) % n], pts[(i + k2) % n]
+        d_in, d_out = q_in - p_in, q_out - p_out
+        den = d_in[0] * d_out[1] - d_in[1] * d_out[0]
+        if abs(den) < 1e-9 * np.hypot(*d_in) * np.hypot(*d_out) + 1e-12:
+            continue
+        r = p_out - p_in
+        s = (r[0] * d_out[1] - r[1] * d_out[0]) / den
+        corner = p_in + s * d_in
+        if np.hypot(*(corner - pts[i])) <= reach:
+            out[i] = corner
+    return out
+
+
 def _unit(v: np.ndarray) -> np.ndarray:
     n = np.hypot(*v)
     return v / n if n > 1e-12 else v
@@ -159,6 +185,7 @@ def fit_ring(ring: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
         segs = fit_run(np.vstack([loop, loop[:1]]), t, -t, tol)
         sharp = [False] * len(segs)
     else:
+        pts = sharpen(pts, cs)
         segs, sharp = [], []
         for a, b in zip(cs, np.roll(cs, -1)):
             run = pts[np.arange(a, a + ((b - a) % n or n) + 1) % n]
@@ -166,23 +193,6 @@ def fit_ring(ring: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
             segs += part
             sharp += [True] + [False] * (len(part) - 1)
     return np.concatenate([c[:3] for c in segs]), np.array(sharp)
-
-
-def align_joins(contour: np.ndarray, sharp: np.ndarray) -> np.ndarray:
-    """Make each smooth join's two handles collinear again (after an unconstrained polish).
-
-    ``contour (3S, 2)``; ``sharp (S,)`` as ``fit_ring`` returns. Handle lengths are kept.
-    """
-    out = np.array(contour, dtype=np.float64)
-    n = len(out)
-    for s in np.nonzero(~np.asarray(sharp, dtype=bool))[0]:
-        a, before, after = out[3 * s], out[(3 * s - 1) % n], out[3 * s + 1]
-        la, lb = np.hypot(*(after - a)), np.hypot(*(a - before))
-        if la < 1e-9 or lb < 1e-9:
-            continue
-        t = _unit((after - a) / la + (a - before) / lb)
-        out[3 * s + 1], out[(3 * s - 1) % n] = a + la * t, a - lb * t
-    return out
 
 
 def split_segments(contour: np.ndarray, sharp: np.ndarray, which: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
