@@ -4,7 +4,7 @@ DATA ?= data
 PIP ?= .venv/bin/pip
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: install test test-slow fuzz lint bench bench-vectorize results demo data-fonts data-mnist data-emoji data-icons clean
+.PHONY: install test test-slow fuzz lint bench bench-vectorize bench-outlines results demo data-fonts data-mnist data-emoji data-icons clean
 
 install: .venv/.installed
 
@@ -41,6 +41,21 @@ bench-vectorize: install
 	test -f $(LIBERATION_NARROW) || (apt-get update -q && apt-get install -y -q fonts-liberation)
 	$(PIP) install -q vtracer==0.6.15
 	$(PY) bench/vectorize.py $(BENCH_ARGS)
+
+# Clean outlines on held-out glyphs (GNU FreeFont, Lato), icons (Font Awesome Free 7.3.1 solid)
+# and emoji (OpenMoji 1.2.29 faces) against potrace and vtracer (issue "vectorize: clean, complete
+# outlines"): docs/OUTLINES.md and docs/outlines.png. About 25 minutes on 2 cores.
+OUTLINES_ARGS ?= --markdown docs/OUTLINES.md  # e.g. OUTLINES_ARGS="--limit 20" for a quick check
+bench-outlines: install
+	command -v potrace >/dev/null || (apt-get update -q && apt-get install -y -q potrace)
+	test -f /usr/share/fonts/truetype/freefont/FreeSans.ttf -a -f /usr/share/fonts/truetype/lato/Lato-Regular.ttf || \
+	  (apt-get update -q && apt-get install -y -q fonts-freefont-ttf fonts-lato)
+	$(PIP) install -q vtracer==0.6.15
+	mkdir -p bench/.sets && cd bench/.sets && \
+	  (test -d fa || (npm pack -q @fortawesome/fontawesome-free@7.3.1 && mkdir fa && tar -xzf fortawesome-fontawesome-free-7.3.1.tgz -C fa)) && \
+	  (test -d om || (npm pack -q @iconify-json/openmoji@1.2.29 && mkdir om && tar -xzf iconify-json-openmoji-1.2.29.tgz -C om))
+	$(PY) bench/outlines.py $(OUTLINES_ARGS)
+	$(PY) docs/make_outlines_figure.py
 
 # The paper's tables from the shipped models (issue "Evaluation"): docs/RESULTS.md and
 # docs/results/. Needs the datasets under $(DATA) (make data-fonts data-mnist data-emoji

@@ -84,10 +84,11 @@ def two_tone(image: np.ndarray, bg: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     d = np.linalg.norm(image - bg, axis=-1)  # (H, W)
     if d.max() < 0.1:
         return None
-    ink = image[d >= 0.8 * d.max()].mean(0)
+    ink = image[d >= 0.9 * d.max()].mean(0)
     axis = ink - bg
-    alpha = np.clip(((image - bg) @ axis) / float(axis @ axis), 0, 1)  # (H, W)
-    off = np.linalg.norm(image - (bg + alpha[..., None] * axis), axis=-1)
+    t = ((image - bg) @ axis) / float(axis @ axis)  # (H, W)
+    off = np.linalg.norm(image - (bg + t[..., None] * axis), axis=-1)  # off the background-ink line
+    alpha = np.clip(t, 0, 1)
     if (off > TWO_TONE_TOL).mean() > TWO_TONE_SHARE:
         return None
     if ((alpha > 0.15) & (alpha < 0.85) & _flat_pixels(image)).mean() > TWO_TONE_SHARE:
