@@ -251,17 +251,17 @@ def _tools(model, glyphs, args) -> dict:
     def amortised(g):
         return to_svg(vectorize(model, [images[g["name"]]], **opts)[0])
 
-    def refined(g):
-        return to_svg(refine(model, images[g["name"]], **opts)[0])
+    def refined(g):  # the model's own parts: bench/outlines.py measures the clean outlines (the default)
+        return to_svg(refine(model, images[g["name"]], settings=EFFORTS["best"], parts="model", **opts)[0])
 
     def refined_fast(g):
-        return to_svg(refine(model, images[g["name"]], settings=EFFORTS["fast"], **opts)[0])
+        return to_svg(refine(model, images[g["name"]], settings=EFFORTS["fast"], parts="model", **opts)[0])
 
     compact = RefineSettings(simplify_tol=COMPACT["simplify"])
 
     def refined_compact(g):
         return to_svg(refine(model, images[g["name"]], segments="auto", quality=COMPACT["quality"],
-                             settings=compact)[0])
+                             settings=compact, parts="model")[0])
 
     tools = {
         "im2vec amortised": amortised,
