@@ -230,8 +230,8 @@ def run(name: str, rows: list[dict], only: set[str] | None) -> dict:
 def _line(tool: str, r: dict) -> str:
     parts = [f"{tool:26s}"]
     if "iou" in r:
-        parts.append(f"IoU@4x {r['iou']:.4f}  topology {r['topology']:.0%}")
-    parts.append(f"MSE@1x {r['mse1']:.5f}  MSE@4x {r['mse4']:.5f}  cracks {r['cracks']:.0%}  paths {r['paths']:.1f}  "
+        parts.append(f"IoU@4x {r['iou']:.4f}  topology {r['topology']:.1%}")
+    parts.append(f"MSE@1x {r['mse1']:.5f}  MSE@4x {r['mse4']:.5f}  cracks {r['cracks']:.1%}  paths {r['paths']:.1f}  "
                  f"segments {r['segments']:.1f}  {r['ms']:.0f} ms  valid {r['valid']:.0%}")
     return "  ".join(parts)
 
@@ -247,8 +247,8 @@ def markdown(all_rows: dict, sizes: dict) -> str:
                   "|---|---|---|---|---|---|---|---|---|---|"]
         for tool, r in rows.items():
             iou = f"{r['iou']:.4f}" if "iou" in r else "–"
-            topo = f"{r['topology']:.0%}" if "topology" in r else "–"
-            lines.append(f"| {tool} | {iou} | {topo} | {r['cracks']:.0%} | {r['mse1']:.5f} | {r['mse4']:.5f} | "
+            topo = f"{r['topology']:.1%}" if "topology" in r else "–"
+            lines.append(f"| {tool} | {iou} | {topo} | {r['cracks']:.1%} | {r['mse1']:.5f} | {r['mse4']:.5f} | "
                          f"{r['paths']:.1f} | {r['segments']:.1f} | {r['ms']:.0f} | {r['valid']:.0%} |")
     return "\n".join(lines) + "\n"
 

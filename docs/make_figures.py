@@ -1,8 +1,9 @@
 """Regenerate docs/vectorize.png and docs/interpolate.png with the shipped models.
 
-vectorize.png: inputs (top), `vectorize --no-refine` (middle, the model alone) and `vectorize`
-(bottom, refined: the default for one image), each
-example with its matching shipped model (digit: mnist, emoji: emoji, icon: icons), else fonts.
+vectorize.png: inputs (top row), `vectorize --no-refine` (the model alone), `vectorize --parts
+model` (the model's paths refined) and `vectorize` (bottom row, clean outlines: the default for
+one image), each example with its matching shipped model (digit: mnist, emoji: emoji, icon:
+icons), else fonts.
 
 Run from the repository root: ``python docs/make_figures.py`` (uses the CLI, as a user would).
 """
@@ -33,10 +34,11 @@ def model_for(example: Path) -> str:
 def main():
     examples = sorted((ROOT / "examples").glob("*.png"))
     with tempfile.TemporaryDirectory() as tmp:
-        sheet = Image.new("RGB", (len(examples) * CELL, 3 * CELL), "white")
+        rows = [["--no-refine"], ["--parts", "model"], []]
+        sheet = Image.new("RGB", (len(examples) * CELL, (1 + len(rows)) * CELL), "white")
         for i, ex in enumerate(examples):
             sheet.paste(Image.open(ex).convert("RGB").resize((CELL, CELL), Image.NEAREST), (i * CELL, 0))
-            for row, extra in ((1, ["--no-refine"]), (2, [])):
+            for row, extra in enumerate(rows, 1):
                 out = Path(tmp) / f"{ex.stem}_{row}.svg"
                 subprocess.run(EXE + ["vectorize", str(ex), "-o", str(out), "--model", model_for(ex), *extra],
                                check=True)

@@ -17,7 +17,6 @@ sys.path.insert(0, str(ROOT / "bench"))
 sys.path.insert(0, str(ROOT / "src"))
 
 import outlines as ol  # noqa: E402
-
 from im2vec_cli import api  # noqa: E402
 from im2vec_cli.files import load_image  # noqa: E402
 from im2vec_cli.vector import rasterize_svg  # noqa: E402
