@@ -32,7 +32,7 @@ from .raster import gaussian_pyramid, polygon_area, pyramid_l2, render_pyramid, 
 from .raster.bezier import bernstein_weights
 from .vector import VectorImage, VectorShape, rasterize_svg, resolve_overlaps, simplify
 from .vector.fit import split_segments
-from .vector.outline import Corners, redrawn, traced
+from .vector.outline import Corners, redrawn, traced, untangle
 from .vector.trace import background_color, two_tone
 
 PARTS = ("clean", "model")
@@ -503,8 +503,8 @@ def _clean(run: Refinement, segments, quality, colors: int | None, max_paths: in
             more = run.polish_outline(more, flags)
             if run.loss(more) < run.loss(vec):
                 vec = more
-    return _with_rule(vec, None, "nonzero")[0], {**info, "loss_end": run.loss(vec), "start": name,
-                                                 "segments": vec.num_segments}
+    out = untangle(_with_rule(vec, None, "nonzero")[0])
+    return out, {**info, "loss_end": run.loss(vec), "start": name, "segments": out.num_segments}
 
 
 def _with_rule(vec: VectorImage, flags, rule: str):
