@@ -98,8 +98,10 @@ def _end_tangent(pts: np.ndarray, at_start: bool, reach: int) -> np.ndarray:
     return _unit(seq[1 : k + 1].mean(0) - seq[0])
 
 
-def _lsq(pts: np.ndarray, u: np.ndarray, t0: np.ndarray, t1: np.ndarray) -> np.ndarray:
-    """Cubic through ``pts[0]`` and ``pts[-1]`` with end tangents ``t0``/``t1``, least squares: ``(4, 2)``."""
+def tangent_cubic(pts: np.ndarray, u: np.ndarray, t0: np.ndarray, t1: np.ndarray) -> np.ndarray:
+    """Cubic through ``pts[0]`` and ``pts[-1]`` with end tangents ``t0``/``t1`` whose two handle
+    lengths fit ``pts (N, 2)`` at parameters ``u (N,)`` in least squares (a third of the chord
+    each when that fails or gives a loop): ``(4, 2)``."""
     p0, p3 = pts[0], pts[-1]
     chord = np.hypot(*(p3 - p0))
     b = np.stack([(1 - u) ** 3, 3 * (1 - u) ** 2 * u, 3 * (1 - u) * u**2, u**3], 1)
@@ -116,7 +118,7 @@ def _lsq(pts: np.ndarray, u: np.ndarray, t0: np.ndarray, t1: np.ndarray) -> np.n
     return np.stack([p0, p0 + alpha[0] * t0, p3 + alpha[1] * t1, p3])
 
 
-def _newton(ctrl: np.ndarray, pts: np.ndarray, u: np.ndarray) -> np.ndarray:
+def newton_step(ctrl: np.ndarray, pts: np.ndarray, u: np.ndarray) -> np.ndarray:
     """One Newton step per sample towards its nearest point on the cubic."""
     d1 = 3 * np.diff(ctrl, axis=0)
     d2 = 2 * np.diff(d1, axis=0)
@@ -158,8 +160,8 @@ def fit_run(pts: np.ndarray, t0: np.ndarray, t1: np.ndarray, tol: float, depth: 
     seg = np.hypot(*np.diff(pts, axis=0).T)
     u = np.concatenate([[0.0], np.cumsum(seg)]) / max(seg.sum(), 1e-12)
     for _ in range(4):
-        ctrl = _lsq(pts, u, t0, t1)
-        u = _newton(ctrl, pts, u)
+        ctrl = tangent_cubic(pts, u, t0, t1)
+        u = newton_step(ctrl, pts, u)
     err = np.hypot(*(cubic_at(ctrl, u) - pts).T)
     if err.max() <= tol or depth > 24:
         return [ctrl]

@@ -17,6 +17,7 @@ import numpy as np
 import torch
 
 from ..raster.bezier import cubic_at, segment_controls
+from .fit import newton_step, tangent_cubic
 from .image import VectorImage
 
 SAMPLES = 12  # points per original segment when measuring a merge
@@ -55,35 +56,10 @@ def fit_merge(first: np.ndarray, second: np.ndarray, pts: np.ndarray) -> tuple[n
     seg = np.hypot(*np.diff(pts, axis=0).T)
     u = np.concatenate([[0.0], np.cumsum(seg)]) / max(seg.sum(), 1e-12)  # chord-length parameters
     for _ in range(3):  # least squares on the two tangent lengths, then re-parametrise
-        b = np.stack([(1 - u) ** 3, 3 * (1 - u) ** 2 * u, 3 * (1 - u) * u**2, u**3], 1)  # (N, 4)
-        a1, a2 = b[:, 1:2] * t0, b[:, 2:3] * t1  # (N, 2) each
-        rest = pts - (b[:, 0:1] + b[:, 1:2]) * p0 - (b[:, 2:3] + b[:, 3:4]) * p3
-        m = np.array([[np.sum(a1 * a1), np.sum(a1 * a2)], [np.sum(a1 * a2), np.sum(a2 * a2)]])
-        r = np.array([np.sum(a1 * rest), np.sum(a2 * rest)])
-        try:
-            alpha = np.linalg.solve(m, r)
-        except np.linalg.LinAlgError:
-            alpha = np.array([chord / 3, chord / 3])
-        if not (alpha > 1e-3 * chord).all():
-            alpha = np.array([chord / 3, chord / 3])
-        ctrl = np.stack([p0, p0 + alpha[0] * t0, p3 + alpha[1] * t1, p3])
-        u = _reparametrise(ctrl, pts, u)
+        ctrl = tangent_cubic(pts, u, t0, t1)
+        u = newton_step(ctrl, pts, u)
     err = float(np.hypot(*(_bezier(ctrl, u) - pts).T).max())
     return ctrl, err
-
-
-def _reparametrise(ctrl: np.ndarray, pts: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """One Newton step per sample towards its closest point on the curve."""
-    d1 = 3 * np.diff(ctrl, axis=0)  # (3, 2)
-    d2 = 2 * np.diff(d1, axis=0)  # (2, 2)
-    t = u[:, None]
-    q = _bezier(ctrl, u) - pts
-    q1 = (1 - t) ** 2 * d1[0] + 2 * (1 - t) * t * d1[1] + t**2 * d1[2]
-    q2 = (1 - t) * d2[0] + t * d2[1]
-    num = (q * q1).sum(1)
-    den = (q1 * q1).sum(1) + (q * q2).sum(1)
-    step = np.where(np.abs(den) > 1e-12, num / np.where(np.abs(den) > 1e-12, den, 1), 0)
-    return np.clip(u - step, 0, 1)
 
 
 def simplify_contour(points: np.ndarray, tol: float, min_segments: int = 2) -> np.ndarray:
