@@ -26,6 +26,7 @@ from .cairo import rasterize_svg
 from .fit import fit_ring
 from .image import VectorImage, VectorShape
 from .simplify import simplify_contour
+from .skia import contour_chain, contours, to_path
 from .trace import background_color, level_polygons, trace, two_tone
 
 Corners = list[list[np.ndarray]]  # per shape, per contour: (S,) bool, true where anchor i is sharp
@@ -120,7 +121,8 @@ def untangle(vec: VectorImage, merge_tol: float = 0.25) -> VectorImage:
         if not crosses(sh.contours):  # keep our cubics and start points
             shapes.append(sh)
             continue
-        clean = _cubic_contours(pathops.simplify(_skia_path(sh), fix_winding=True, keep_starting_points=True))
+        path = to_path([contour_chain(c) for c in sh.contours], sh.fill_rule)
+        clean = contours(pathops.simplify(path, fix_winding=True, keep_starting_points=True))
         merged = [simplify_contour(c, merge_tol) if len(c) >= 9 else c for c in clean]  # path ops split curves
         shapes.append(VectorShape(clean if crosses(merged) else merged, sh.color, "nonzero"))
     return VectorImage(vec.width, vec.height, shapes)
@@ -154,43 +156,3 @@ def crosses(contours: list[np.ndarray], samples: int = 16) -> bool:
     gap = np.abs(index[:, None] - index[None])
     neighbours = same & ((gap <= 1) | (gap >= size[:, None] - 1))
     return bool((hit & ~neighbours).any())
-
-
-def _skia_path(shape: VectorShape):
-    import pathops
-
-    path = pathops.Path(fillType=pathops.FillType.EVEN_ODD if shape.fill_rule == "evenodd" else pathops.FillType.WINDING)
-    for c in shape.contours:
-        c = np.asarray(c, dtype=np.float64)
-        n = len(c)
-        path.moveTo(*c[0])
-        for s in range(n // 3):
-            path.cubicTo(*c[3 * s + 1], *c[3 * s + 2], *c[(3 * s + 3) % n])
-        path.close()
-    return path
-
-
-def _cubic_contours(path) -> list[np.ndarray]:
-    """A Skia path's closed contours as ``(3S, 2)`` cubic contours (lines and quadratics raised)."""
-    import pathops
-
-    out, cur, start = [], [], None
-    for verb, pts in path:
-        pts = [np.asarray(p, dtype=np.float64) for p in pts]
-        if verb == pathops.PathVerb.MOVE:
-            start, cur = pts[0], [pts[0]]
-        elif verb == pathops.PathVerb.LINE:
-            a = cur[-1]
-            cur += [a + (pts[0] - a) / 3, a + 2 * (pts[0] - a) / 3, pts[0]]
-        elif verb == pathops.PathVerb.QUAD:
-            a = cur[-1]
-            cur += [a + 2 / 3 * (pts[0] - a), pts[1] + 2 / 3 * (pts[0] - pts[1]), pts[1]]
-        elif verb == pathops.PathVerb.CUBIC:
-            cur += pts
-        elif verb == pathops.PathVerb.CLOSE and len(cur) > 1:
-            if not np.allclose(cur[-1], start):  # close with a straight segment
-                a = cur[-1]
-                cur += [a + (start - a) / 3, a + 2 * (start - a) / 3, start]
-            out.append(np.array(cur[:-1]))  # the last point repeats the first
-            cur = []
-    return [c for c in out if len(c) >= 3 and len(c) % 3 == 0]

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..raster.bezier import line_controls
+from . import skia
 from .image import VectorImage, VectorShape
 
 MAX_SEGMENTS = 200_000  # path segments in one SVG (an SVG of 1,000,000 took minutes to read)
@@ -180,20 +181,11 @@ def _subpaths(segments) -> list[tuple[np.ndarray, bool]]:
     return out
 
 
-def _closed(chain: np.ndarray) -> np.ndarray | None:
-    """A chain closed as a fill closes it (a straight line back to its start where needed):
-    ``(3S, 2)`` in the wrap-around layout, or ``None`` when it encloses nothing."""
-    if not np.allclose(chain[-1], chain[0]):
-        a, b = chain[-1], chain[0]
-        chain = np.concatenate([chain, np.stack([*line_controls(a, b), b])])
-    return chain[:-1] if len(chain) > 3 else None  # the last anchor is the start again
-
-
 def _fill_contours(chains: list[tuple[np.ndarray, bool]], m) -> list[np.ndarray]:
     """Every subpath closed (as SVG fills an open one), mapped by ``m``; subpaths on one
     straight line (a ``<line>``'s fill) enclose nothing and are dropped."""
     out = []
-    for c in (_closed(ch) for ch, _ in chains):
+    for c in (skia.close_chain(ch) for ch, _ in chains):
         if c is not None and np.linalg.matrix_rank(c - c.mean(0), tol=1e-9 * (1 + np.abs(c).max())) == 2:
             out.append(_transform(c, m))
     return out
@@ -209,16 +201,9 @@ def _stroke_contours(chains: list[tuple[np.ndarray, bool]], el, m) -> list[np.nd
     caps, joins, miter limit and dashes as SVG says), stroked in the element's own
     coordinates and then mapped by ``m``, so a scaled or skewed stroke is scaled or skewed too."""
     import pathops
-    from fontTools.pens.basePen import decomposeQuadraticSegment
 
     v = el.values
-    path = pathops.Path()
-    for ch, closed in chains:
-        path.moveTo(*ch[0])
-        for i in range(1, len(ch), 3):
-            path.cubicTo(*ch[i], *ch[i + 1], *ch[i + 2])
-        if closed:
-            path.close()
+    path = skia.to_path(chains)
     dash_text = str(v.get("stroke-dasharray", "none")).strip()
     dashes = [] if dash_text == "none" else [float(x) for x in re.split(r"[\s,]+", dash_text) if x]
     if len(dashes) % 2:
@@ -229,28 +214,7 @@ def _stroke_contours(chains: list[tuple[np.ndarray, bool]], el, m) -> list[np.nd
                 dash_offset=float(v.get("stroke-dashoffset", 0) or 0))
     path.convertConicsToQuads()
     path.simplify()  # one non-overlapping outline (nonzero)
-    out, cur = [], []
-    for verb, pts in path.segments:
-        if verb == "moveTo":
-            cur = [list(pts[0])]
-        elif verb == "lineTo":
-            a, b = np.asarray(cur[-1]), np.asarray(pts[0])
-            cur.extend([*map(list, line_controls(a, b)), list(b)])
-        elif verb == "curveTo":
-            cur.extend([list(p) for p in pts])
-        elif verb == "qCurveTo":
-            if pts[-1] is None:  # a closed contour of off-curve points only: it starts between the last and first
-                start = tuple((np.asarray(pts[-2]) + np.asarray(pts[0])) / 2)
-                cur, pts = [list(start)], (*pts[:-1], start)
-            for q, b in decomposeQuadraticSegment(pts):
-                a, q, b = np.asarray(cur[-1]), np.asarray(q), np.asarray(b)
-                cur.extend([list(a + 2 * (q - a) / 3), list(b + 2 * (q - b) / 3), list(b)])
-        elif verb in ("closePath", "endPath") and len(cur) > 1:
-            c = _closed(np.asarray(cur, dtype=np.float64))
-            if c is not None:
-                out.append(_transform(c, m))
-            cur = []
-    return out
+    return [_transform(c, m) for c in skia.contours(path)]
 
 
 def from_svg(text: str | bytes) -> VectorImage:
