@@ -178,3 +178,11 @@ def test_effort_choices_are_the_refine_presets():
 
     option = next(p for p in vectorize.params if p.name == "effort")
     assert list(option.type.choices) == list(EFFORTS) and option.default in EFFORTS
+
+
+def test_parts_choices_are_the_refine_parts():
+    from im2vec_cli.cli import vectorize
+    from im2vec_cli.refine import PARTS
+
+    option = next(p for p in vectorize.params if p.name == "parts")
+    assert list(option.type.choices) == list(PARTS) and option.default == PARTS[0]

@@ -418,40 +418,23 @@ def in_render_onto_its_input(d, m):
     return ["render", str(d / "x.svg"), "-o", str(d / "x.svg")], None
 
 
-def in_quality_nan(d, m):
-    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--quality", "nan"], None
+def vectorize_with(*option):
+    """A case builder: ``vectorize`` of a good PNG with ``option`` added (a bad option value)."""
+    def build(d, m):
+        return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), *option], None
+
+    return build
 
 
-def in_tolerance_nan(d, m):
-    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--tolerance", "nan"], None
-
-
-def in_tolerance_negative(d, m):
-    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--tolerance", "-1"], None
-
-
-def in_tolerance_zero(d, m):
-    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--tolerance", "0"], None
-
-
-def in_colors_zero(d, m):
-    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--colors", "0"], None
-
-
-def in_colors_too_many(d, m):
-    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--colors", "1000"], None
-
-
-def in_max_paths_zero(d, m):
-    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--max-paths", "0"], None
-
-
-def in_parts_unknown(d, m):
-    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--parts", "some"], None
-
-
-def in_simplify_nan(d, m):
-    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--simplify", "nan"], None
+in_quality_nan = vectorize_with("--quality", "nan")
+in_tolerance_nan = vectorize_with("--tolerance", "nan")
+in_tolerance_negative = vectorize_with("--tolerance", "-1")
+in_tolerance_zero = vectorize_with("--tolerance", "0")
+in_colors_zero = vectorize_with("--colors", "0")
+in_colors_too_many = vectorize_with("--colors", "1000")
+in_max_paths_zero = vectorize_with("--max-paths", "0")
+in_parts_unknown = vectorize_with("--parts", "some")
+in_simplify_nan = vectorize_with("--simplify", "nan")
 
 
 def in_temperature_inf(d, m):

@@ -16,11 +16,11 @@ from im2vec_cli import api
 from im2vec_cli.cli import cli
 from im2vec_cli.files import load_image
 from im2vec_cli.model.pretrained import REPO_MODELS
-from im2vec_cli.raster import flatten_closed
+from im2vec_cli.raster import flatten_closed, polygon_area
 from im2vec_cli.vector import VectorImage, VectorShape, rasterize_svg
 from im2vec_cli.vector.fit import corners, fit_ring, resample, split_segments
 from im2vec_cli.vector.outline import redrawn
-from im2vec_cli.vector.trace import polygon_area, quantize, two_tone
+from im2vec_cli.vector.trace import quantize, two_tone
 
 needs_fonts = pytest.mark.skipif(not (REPO_MODELS / "fonts" / "config.json").exists(), reason="no shipped fonts model")
 needs_emoji = pytest.mark.skipif(not (REPO_MODELS / "emoji" / "config.json").exists(), reason="no shipped emoji model")
@@ -83,7 +83,7 @@ def test_redrawn_unites_overlapping_parts_into_outer_contour_and_hole():
     model_like = VectorImage(64, 64, [VectorShape(parts, (0, 0, 0), "nonzero")])  # as resolve_overlaps leaves it
     clean, flags = redrawn(model_like, 0.5)
     assert len(clean.shapes) == 1 and len(clean.shapes[0].contours) == 2
-    areas = sorted(polygon_area(flatten_closed(torch.from_numpy(c), 8).numpy()) for c in clean.shapes[0].contours)
+    areas = sorted(float(polygon_area(flatten_closed(torch.from_numpy(c), 8))) for c in clean.shapes[0].contours)
     assert areas[0] < 0 < areas[1]  # one hole (counter-clockwise), one outer contour (clockwise on screen)
     svg = clean.to_svg()
     check_clean_svg(svg)

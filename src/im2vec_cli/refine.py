@@ -28,15 +28,14 @@ from .frame import Placement
 from .infer import flat_result, model_input, segment_counts, to_vector
 from .model.vae import Im2Vec
 from .optim import Adam
-from .raster import gaussian_pyramid, polygon_area, pyramid_l2, render_pyramid, segment_controls
-from .raster.bezier import bernstein_weights
+from .raster import flatten_closed, gaussian_pyramid, polygon_area, pyramid_l2, render_pyramid, segment_controls
 from .vector import VectorImage, VectorShape, rasterize_svg, resolve_overlaps, simplify
 from .vector.fit import split_segments
 from .vector.outline import Corners, redrawn, traced, untangle
 from .vector.trace import background_color, two_tone
 
-PARTS = ("clean", "model")
-CHOICE_TOLERANCE = 0.25  # px: the clean-outline starts are compared fitted this closely  # `vectorize --parts`: clean outlines (default) or the model's own paths
+PARTS = ("clean", "model")  # `vectorize --parts`: clean outlines (default) or the model's own paths
+CHOICE_TOLERANCE = 0.25  # px: the clean-outline starts are compared fitted this closely
 
 
 @dataclass(frozen=True)
@@ -373,14 +372,12 @@ class Refinement:
         got = rasterize_svg(vec.to_svg(3), w, h)  # (H, W, 3)
         err = ((got - self.image.permute(1, 2, 0).double().cpu().numpy()) ** 2).sum(-1)
         err = uniform_filter(err, 3)
-        weights = bernstein_weights(8, dtype=torch.float64, device=torch.device("cpu")).numpy()  # (8, 4)
         limit = self.s.split_error * (self.s.tolerance / 0.5) ** 2  # a looser tolerance splits less
         shapes, out_flags, count = [], [], 0
         for sh, fl in zip(vec.shapes, flags):
             cs, fs = [], []
             for c, f in zip(sh.contours, fl):
-                segs = segment_controls(torch.from_numpy(np.asarray(c, dtype=np.float64))).numpy()  # (S, 4, 2)
-                pts = np.einsum("tk,skc->stc", weights, segs)  # (S, 8, 2)
+                pts = flatten_closed(torch.from_numpy(np.asarray(c, dtype=np.float64)), 8).numpy().reshape(-1, 8, 2)
                 ix = np.clip(pts[..., 0].astype(int), 0, w - 1)
                 iy = np.clip(pts[..., 1].astype(int), 0, h - 1)
                 bad = np.nonzero(err[iy, ix].mean(1) > limit)[0]
@@ -480,14 +477,14 @@ def _clean(run: Refinement, segments, quality, colors: int | None, max_paths: in
     picture = run.image.permute(1, 2, 0).double().cpu().numpy()  # (H, W, 3)
     # The contours of a clean shape do not overlap, so even-odd renders them as nonzero does,
     # without the renderer's boundary search (seconds on a picture of many regions); written nonzero.
-    starts = {"image": lambda tol: _with_rule(*traced(picture, tol, colors, max_paths), "evenodd")}
+    starts = {"image": lambda tol: _evenodd(*traced(picture, tol, colors, max_paths))}
     info: dict = {}
     if run.s.model_start and colors in (None, 1) and two_tone(picture, background_color(picture)) is not None:
         # Multi-colour pictures: the shipped emoji model's paths lost to the image's own regions on
         # every OpenMoji face tried (bench/outlines.py) and cost seconds, so only the image is traced.
         model_vec, info = _model_paths(run, segments, quality, max_paths, outline=True)
         if model_vec.shapes:
-            starts["model"] = lambda tol: _with_rule(*redrawn(model_vec, tol, picture), "evenodd")
+            starts["model"] = lambda tol: _evenodd(*redrawn(model_vec, tol, picture))
     if len(starts) > 1:  # chosen at one tolerance for all, so that a looser one never changes the choice
         scored = sorted((run.loss(make(CHOICE_TOLERANCE)[0]), name) for name, make in starts.items())
         name = scored[0][1]  # the polish moves points by a fraction of a pixel: it does not reorder the starts
@@ -497,15 +494,21 @@ def _clean(run: Refinement, segments, quality, colors: int | None, max_paths: in
     if not vec.shapes:  # nothing to draw
         return vec, {**info, "loss_end": run.loss(vec), "start": name, "segments": 0}
     vec = run.polish_outline(vec, flags)
+    loss = run.loss(vec)
     if run.s.split_error > 0:
         more, flags, n = run.split_where_wrong(vec, flags)
         if n:
             more = run.polish_outline(more, flags)
-            if run.loss(more) < run.loss(vec):
-                vec = more
-    out = untangle(_with_rule(vec, None, "nonzero")[0])
-    return out, {**info, "loss_end": run.loss(vec), "start": name, "segments": out.num_segments}
+            more_loss = run.loss(more)
+            if more_loss < loss:
+                vec, loss = more, more_loss
+    out = untangle(_with_rule(vec, "nonzero"))
+    return out, {**info, "loss_end": loss, "start": name, "segments": out.num_segments}
 
 
-def _with_rule(vec: VectorImage, flags, rule: str):
-    return VectorImage(vec.width, vec.height, [VectorShape(sh.contours, sh.color, rule) for sh in vec.shapes]), flags
+def _with_rule(vec: VectorImage, rule: str) -> VectorImage:
+    return VectorImage(vec.width, vec.height, [VectorShape(sh.contours, sh.color, rule) for sh in vec.shapes])
+
+
+def _evenodd(vec: VectorImage, flags: Corners) -> tuple[VectorImage, Corners]:
+    return _with_rule(vec, "evenodd"), flags

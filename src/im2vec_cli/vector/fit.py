@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..raster.bezier import cubic_at
+from ..raster.bezier import cubic_at, line_controls
 
 STEP = 0.5  # resampling step along the ring (px)
 NEAR, FAR = 1.5, 3.0  # arc lengths (px) over which a turn is measured
@@ -131,10 +131,6 @@ def newton_step(ctrl: np.ndarray, pts: np.ndarray, u: np.ndarray) -> np.ndarray:
     return np.clip(u - np.where(ok, (q * q1).sum(1) / np.where(ok, den, 1), 0), 0, 1)
 
 
-def _line(p0: np.ndarray, p3: np.ndarray) -> np.ndarray:
-    return np.stack([p0, p0 + (p3 - p0) / 3, p0 + 2 * (p3 - p0) / 3, p3])
-
-
 def _cross(a: np.ndarray, b: np.ndarray) -> float:
     return float(a[0] * b[1] - a[1] * b[0])
 
@@ -153,7 +149,7 @@ def fit_run(pts: np.ndarray, t0: np.ndarray, t1: np.ndarray, tol: float, depth: 
     chord = pts[-1] - pts[0]
     straight = _line_error(pts) <= tol
     if straight and (depth == 0 or min(abs(_cross(t0, chord)), abs(_cross(t1, chord))) <= 0.02 * np.hypot(*chord)):
-        return [_line(pts[0], pts[-1])]  # a straight run (a split piece only if its tangents allow it)
+        return [np.stack([pts[0], *line_controls(pts[0], pts[-1]), pts[-1]])]  # a straight run (a split piece only if its tangents allow it)
     if len(pts) <= 3:
         n = np.hypot(*chord) / 3
         return [np.stack([pts[0], pts[0] + n * t0, pts[-1] + n * t1, pts[-1]])]

@@ -22,11 +22,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import skia
 from .cairo import rasterize_svg
 from .fit import fit_ring
 from .image import VectorImage, VectorShape
 from .simplify import simplify_contour
-from .skia import contour_chain, contours, to_path
 from .trace import background_color, level_polygons, trace, two_tone
 
 Corners = list[list[np.ndarray]]  # per shape, per contour: (S,) bool, true where anchor i is sharp
@@ -121,11 +121,14 @@ def untangle(vec: VectorImage, merge_tol: float = 0.25) -> VectorImage:
         if not crosses(sh.contours):  # keep our cubics and start points
             shapes.append(sh)
             continue
-        path = to_path([contour_chain(c) for c in sh.contours], sh.fill_rule)
-        clean = contours(pathops.simplify(path, fix_winding=True, keep_starting_points=True))
+        path = skia.to_path([skia.contour_chain(c) for c in sh.contours], sh.fill_rule)
+        clean = skia.contours(pathops.simplify(path, fix_winding=True, keep_starting_points=True))
         merged = [simplify_contour(c, merge_tol) if len(c) >= 9 else c for c in clean]  # path ops split curves
         shapes.append(VectorShape(clean if crosses(merged) else merged, sh.color, "nonzero"))
     return VectorImage(vec.width, vec.height, shapes)
+
+
+CROSS_BLOCK = 512  # edges tested at once by ``crosses`` (a few MB of pair arrays)
 
 
 def crosses(contours: list[np.ndarray], samples: int = 16) -> bool:
@@ -146,13 +149,17 @@ def crosses(contours: list[np.ndarray], samples: int = 16) -> bool:
     def cross(u, v):
         return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
 
-    r = a[None] - a[:, None]  # (E, E, 2): from edge i's start to edge j's start
-    den = cross(d[:, None], d[None])
-    ok = np.abs(den) > 1e-12
-    t = np.where(ok, cross(r, d[None]) / np.where(ok, den, 1), -1)  # along edge i
-    u = np.where(ok, cross(r, d[:, None]) / np.where(ok, den, 1), -1)  # along edge j
-    hit = ok & (t > 1e-9) & (t < 1 - 1e-9) & (u > 1e-9) & (u < 1 - 1e-9)
-    same = owner[:, None] == owner[None]
-    gap = np.abs(index[:, None] - index[None])
-    neighbours = same & ((gap <= 1) | (gap >= size[:, None] - 1))
-    return bool((hit & ~neighbours).any())
+    for lo in range(0, len(a), CROSS_BLOCK):  # blocks of edges i against all edges j: memory stays bounded
+        i = slice(lo, lo + CROSS_BLOCK)
+        r = a[None] - a[i, None]  # (B, E, 2): from edge i's start to edge j's start
+        den = cross(d[i, None], d[None])
+        ok = np.abs(den) > 1e-12
+        t = np.where(ok, cross(r, d[None]) / np.where(ok, den, 1), -1)  # along edge i
+        u = np.where(ok, cross(r, d[i, None]) / np.where(ok, den, 1), -1)  # along edge j
+        hit = ok & (t > 1e-9) & (t < 1 - 1e-9) & (u > 1e-9) & (u < 1 - 1e-9)
+        same = owner[i, None] == owner[None]
+        gap = np.abs(index[i, None] - index[None])
+        neighbours = same & ((gap <= 1) | (gap >= size[i, None] - 1))
+        if (hit & ~neighbours).any():
+            return True
+    return False

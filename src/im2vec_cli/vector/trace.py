@@ -28,6 +28,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import torch
+
+from ..raster.bezier import polygon_area
 
 WHITE_TOL = 0.06  # a colour within this (max channel distance) of white is white
 TWO_TONE_TOL = 0.08  # pixels this far (RGB distance) from the background-ink line break two-tone...
@@ -41,12 +44,6 @@ class Region:
 
     color: tuple[float, float, float]
     polygons: list[np.ndarray]
-
-
-def polygon_area(ring: np.ndarray) -> float:
-    """Signed shoelace area of a closed ring ``(N, 2)``: positive when clockwise on screen (y down)."""
-    x, y = ring[:, 0], ring[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
 
 
 def level_polygons(field: np.ndarray, level: float = 0.5, min_area: float = 0.5) -> list[np.ndarray]:
@@ -65,7 +62,7 @@ def level_polygons(field: np.ndarray, level: float = 0.5, min_area: float = 0.5)
     for poly, offsets in zip(*gen.filled(level, np.inf)):
         for a, b in zip(offsets[:-1], offsets[1:]):
             ring = np.clip(poly[a : b - 1], 0, [w, h])  # the last point repeats the first
-            if len(ring) >= 3 and abs(polygon_area(ring)) >= min_area:
+            if len(ring) >= 3 and abs(float(polygon_area(torch.from_numpy(ring)))) >= min_area:
                 rings.append(ring)
     return rings
 
@@ -79,15 +76,21 @@ def background_color(image: np.ndarray) -> np.ndarray:
     return near.mean(0)
 
 
+def _ink_line(image: np.ndarray, bg: np.ndarray, extreme: float) -> tuple[np.ndarray, np.ndarray]:
+    """The ink (mean of the pixels at least ``extreme`` of the farthest from ``bg``) and each
+    pixel's position ``t (H, W)`` along the background-ink line (0: background, 1: ink; unclipped)."""
+    d = np.linalg.norm(image - bg, axis=-1)  # (H, W)
+    ink = image[d >= extreme * max(d.max(), 1e-6)].mean(0)
+    axis = ink - bg
+    return ink, ((image - bg) @ axis) / max(float(axis @ axis), 1e-12)
+
+
 def two_tone(image: np.ndarray, bg: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """``(ink (3,), alpha (H, W))`` when every pixel mixes ``bg`` and one ink colour, else ``None``."""
-    d = np.linalg.norm(image - bg, axis=-1)  # (H, W)
-    if d.max() < 0.1:
+    if np.linalg.norm(image - bg, axis=-1).max() < 0.1:
         return None
-    ink = image[d >= 0.9 * d.max()].mean(0)
-    axis = ink - bg
-    t = ((image - bg) @ axis) / float(axis @ axis)  # (H, W)
-    off = np.linalg.norm(image - (bg + t[..., None] * axis), axis=-1)  # off the background-ink line
+    ink, t = _ink_line(image, bg, 0.9)
+    off = np.linalg.norm(image - (bg + t[..., None] * (ink - bg)), axis=-1)  # off the background-ink line
     alpha = np.clip(t, 0, 1)
     if (off > TWO_TONE_TOL).mean() > TWO_TONE_SHARE:
         return None
@@ -110,19 +113,13 @@ def trace(image: np.ndarray, colors: int | None = None, max_regions: int | None 
     bg = background_color(image)
     tone = two_tone(image, bg) if colors in (None, 1) else None
     if tone is None and colors == 1:
-        tone = _forced_two_tone(image, bg)
+        ink, t = _ink_line(image, bg, 0.8)
+        tone = ink, np.clip(t, 0, 1)
     if tone is not None:
         ink, alpha = tone
         return _with_background(bg, [Region(tuple(ink.tolist()), level_polygons(alpha))], image.shape)
     palette, labels = quantize(image, colors, seed)
     return _with_background(bg, _stacked_regions(image, palette, labels, max_regions), image.shape)
-
-
-def _forced_two_tone(image: np.ndarray, bg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    d = np.linalg.norm(image - bg, axis=-1)
-    ink = image[d >= 0.8 * max(d.max(), 1e-6)].mean(0)
-    axis = ink - bg
-    return ink, np.clip(((image - bg) @ axis) / max(float(axis @ axis), 1e-12), 0, 1)
 
 
 def _with_background(bg: np.ndarray, regions: list[Region], shape) -> list[Region]:
@@ -185,27 +182,28 @@ def _assign(image: np.ndarray, palette: np.ndarray, flat: np.ndarray) -> np.ndar
     near[~near.any(-1)] = True
     best = np.full((h, w), np.inf)
     labels = np.zeros((h, w), dtype=np.int64)
-    for i in range(k):
-        for j in range(i, k):
-            a, d = palette[i], palette[j] - palette[i]
-            t = np.clip((image - a) @ d / max(float(d @ d), 1e-12), 0, 1)
-            r = np.linalg.norm(image - a - t[..., None] * d, axis=-1) + 1e-6 * (i != j)  # ties: one colour
-            r[~(near[..., i] & near[..., j])] = np.inf
-            better = r < best
-            best[better] = r[better]
-            labels[better] = np.where(t[better] < 0.5, i, j)
+    for i, j, t, r in _mixes(image, palette):
+        r = r + 1e-6 * (i != j)  # ties: one colour
+        r[~(near[..., i] & near[..., j])] = np.inf
+        better = r < best
+        best[better] = r[better]
+        labels[better] = np.where(t[better] < 0.5, i, j)
     return labels
 
 
-def _mix_distance(pixels: np.ndarray, palette: np.ndarray) -> np.ndarray:
-    """``(N,)`` distance of each pixel to the nearest mix of two palette colours (an edge pixel)."""
-    best = np.full(len(pixels), np.inf)
+def _mixes(pixels: np.ndarray, palette: np.ndarray):
+    """For every pair ``i <= j`` of palette colours: ``(i, j, t, r)``, each pixel's position ``t``
+    along the mix from colour ``i`` to colour ``j`` and its distance ``r`` from that mix."""
     for i in range(len(palette)):
         for j in range(i, len(palette)):
             a, d = palette[i], palette[j] - palette[i]
             t = np.clip((pixels - a) @ d / max(float(d @ d), 1e-12), 0, 1)
-            best = np.minimum(best, np.linalg.norm(pixels - a - t[:, None] * d, axis=1))
-    return best
+            yield i, j, t, np.linalg.norm(pixels - a - t[..., None] * d, axis=-1)
+
+
+def _mix_distance(pixels: np.ndarray, palette: np.ndarray) -> np.ndarray:
+    """``(N,)`` distance of each pixel to the nearest mix of two palette colours (an edge pixel)."""
+    return np.min([r for _, _, _, r in _mixes(pixels, palette)], axis=0)
 
 
 def _thin_colors(pixels: np.ndarray, palette: np.ndarray, max_colors: int, tol: float = 0.12) -> np.ndarray:
