@@ -65,15 +65,17 @@ results: install
 	$(PIP) install -q -e '.[results]'
 	$(PY) docs/make_results.py --data $(DATA) $(RESULTS_ARGS)
 
+# Every example with its matching shipped model (glyph_* fonts, digit_* mnist, emoji_* emoji,
+# icon_* icons), refined (the default), then a 4x contact sheet of input | SVG next to them.
 demo: install
-	@mkdir -p out/demo
+	@rm -rf out/demo && mkdir -p out/demo
 	@if [ -d models/fonts ]; then \
-	  .venv/bin/im2vec vectorize examples/*.png -o out/demo && \
-	  for m in mnist:digit emoji:emoji icons:icon; do \
+	  for m in fonts:glyph mnist:digit emoji:emoji icons:icon; do \
 	    name=$${m%%:*}; ex=$${m##*:}; \
-	    if [ -d models/$$name ]; then mkdir -p out/demo/$$name && .venv/bin/im2vec vectorize examples/$${ex}_*.png -o out/demo/$$name --model $$name; fi; \
+	    if [ -d models/$$name ]; then .venv/bin/im2vec vectorize examples/$${ex}_*.png -o out/demo --model $$name || exit 1; fi; \
 	  done; \
-	  echo "SVGs written to out/demo/ (the default fonts model; out/demo/<model>/ with the matching model where one ships)"; \
+	  $(PY) examples/demo_sheet.py examples out/demo out/demo/sheet.png && \
+	  ls out/demo/*.svg && echo "refined SVGs written to out/demo/ (each example with its matching model); side by side: out/demo/sheet.png"; \
 	else \
 	  $(PY) examples/make_example_svg.py out/demo/example.svg && \
 	  .venv/bin/im2vec render out/demo/example.svg -o out/demo/example.png --scale 2 && \

@@ -772,21 +772,54 @@ def test_batch_of_1000_with_5_percent_bad(tmp_path, model_dir):
         f"g{i:04d}.png" for i in bad}
 
 
-def test_batch_streams_in_chunks(tmp_path, model_dir, monkeypatch):
-    """At most one chunk of decoded images is alive at any time."""
+@pytest.mark.parametrize("refine", [True, False])
+def test_batch_streams_in_chunks(tmp_path, model_dir, monkeypatch, refine):
+    """At most one chunk of images is alive at any time: one refinement batch per chunk by
+    default, one forward pass per chunk with --no-refine."""
     import im2vec_cli.cli.convert as cli_mod
     import im2vec_cli.infer as infer
+    import im2vec_cli.refine as refinement
 
     d = tmp_path / "in"
     d.mkdir()
     for i in range(70):
         _glyph_like(32).save(d / f"g{i:03d}.png")
     sizes = []
-    real = infer.vectorize
-    monkeypatch.setattr(infer, "vectorize", lambda model, images, **kw: sizes.append(len(images)) or real(
-        model, images, **kw))
-    res = CliRunner().invoke(cli, ["vectorize", str(d), "-o", str(tmp_path / "out"), "--model", model_dir])
+    mod, name = (refinement, "refine_batch") if refine else (infer, "vectorize")
+    real = getattr(mod, name)
+    monkeypatch.setattr(mod, name, lambda model, images, **kw: sizes.append(len(images)) or real(model, images, **kw))
+    res = CliRunner().invoke(cli, ["vectorize", str(d), "-o", str(tmp_path / "out"), "--model", model_dir]
+                             + ([] if refine else ["--no-refine"]))
     assert res.exit_code == 0 and sum(sizes) == 70 and max(sizes) == cli_mod.VECTORIZE_CHUNK
+    assert len(list((tmp_path / "out").glob("*.svg"))) == 70
+
+
+@pytest.mark.parametrize("jobs", ["1", "2"])
+def test_ctrl_c_in_a_real_process_leaves_only_complete_svgs(tmp_path, model_dir, jobs):
+    """A real SIGINT (what Ctrl-C sends) while a folder is being refined, once the first chunk
+    is written: exit 130, one line, every SVG on disk complete, no temp file, the rest absent."""
+    import signal
+    import time
+
+    d = tmp_path / "in"
+    d.mkdir()
+    for i in range(400):
+        _glyph_like(32 + i % 3).save(d / f"g{i:03d}.png")
+    out = tmp_path / "out"
+    proc = subprocess.Popen(EXE + ["vectorize", str(d), "-o", str(out), "--model", model_dir, "--jobs", jobs],
+                            stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 240
+    while time.time() < deadline and not list(out.glob("*.svg")) and proc.poll() is None:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and err.strip().splitlines()[-1] == "Interrupted."
+    written = sorted(out.glob("*.svg"))
+    assert 0 < len(written) < 400
+    for p in written:
+        check_svg(p.read_text(), 32 + int(p.stem[1:]) % 3, 32 + int(p.stem[1:]) % 3)
+    assert [p.name for p in out.iterdir() if p.suffix != ".svg"] == []
 
 
 def test_determinism_byte_identical(tmp_path, model_dir):

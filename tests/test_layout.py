@@ -24,7 +24,7 @@ LAYERS = {  # first component under im2vec_cli -> layer; higher may import lower
     "vector": 2,
     "model": 3, "data": 3,
     "infer": 4, "refine": 4, "train": 4, "train_aux": 4, "evaluate": 4,
-    "api": 5,
+    "api": 5, "parallel": 5,
     "cli": 6, "__main__": 6,
 }
 SIBLINGS_APART = {("model", "data"), ("data", "model")}

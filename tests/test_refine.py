@@ -138,3 +138,30 @@ def test_refine_adam_matches_torch_adam():
             ((p**3).sum() + p.square().sum() + (q.sin() * q).sum()).backward()
             opt.step()
     assert torch.allclose(a1, b1, atol=1e-6) and torch.allclose(a2, b2, atol=1e-6)
+
+
+BATCH_TOLERANCE = 0.002  # mean |difference| of the 4x cairo renders (0..1), and the same segment count
+
+
+@pytest.mark.skipif(not (REPO_MODELS / "fonts" / "config.json").exists(), reason="no shipped fonts model")
+@pytest.mark.parametrize("parts", ["clean", "model"])
+def test_batched_refinement_matches_one_image_at_a_time(parts):
+    """A mixed batch (different glyphs, one flat image, one image of another size) refined
+    together gives each image what refining it alone gives, within ``BATCH_TOLERANCE``."""
+    from im2vec_cli.refine import refine_batch
+
+    model = from_pretrained("fonts")
+    files = sorted(ASSETS.glob("*.png"))[:5]
+    images = [load_image(f) for f in files]
+    images.insert(2, torch.full((3, 64, 64), 0.4))  # flat: no fitting at all
+    images.append(torch.nn.functional.interpolate(images[0][None], size=(48, 40), mode="area")[0])
+    settings = EFFORTS["fast"] if parts == "clean" else QUICK
+    together = [v for v, _ in refine_batch(model, images, parts=parts, settings=settings)]
+    for img, got in zip(images, together):
+        alone = refine(model, img, parts=parts, settings=settings)[0]
+        h, w = img.shape[1:]
+        assert got.num_segments == alone.num_segments
+        a, b = (rasterize_svg(to_svg(v), 4 * w, 4 * h) for v in (got, alone))
+        assert np.abs(a - b).mean() <= BATCH_TOLERANCE
+    assert together[2].num_segments == 4 and together[-1].width == 40  # the flat square; the other size kept
+    assert len({v.num_segments for v in together}) > 2  # the images differ, so the check can fail

@@ -95,8 +95,8 @@ def vectorize(images, model=DEFAULT_MODEL, *, refine: bool = True, effort: str =
         if tolerance is not None:
             settings = dataclasses.replace(settings, tolerance=float(tolerance))
         with compiling(False):  # every input shape would recompile: far more than it saves
-            out = [refinement.refine(model, p, settings=settings, parts=parts, colors=colors, **kw)[0]
-                   for p in pictures]
+            out = [v for v, _ in refinement.refine_batch(model, pictures, settings=settings, parts=parts,
+                                                         colors=colors, **kw)]
     else:
         out = [simplify(v, simplify_px or 0.0) for v in infer.vectorize(model, pictures, **kw)]
     return out[0] if one else out

@@ -251,7 +251,7 @@ def test_gradcheck_supersampled_float64():
 
 
 def test_gradcheck_grouped_shapes_evenodd():
-    # unequal shapes (2 contours + 1) take the per-path distance branch, under even-odd
+    # unequal shapes (2 contours + 1) take the gathered-rows branch, under even-odd
     torch.manual_seed(1)
     base = torch.stack([circle(0.45, 0.5, 0.3, 3), circle(0.5, 0.5, 0.12, 3), circle(0.7, 0.3, 0.15, 3)])
     pts = (base + 0.02 * torch.randn_like(base))[None].requires_grad_(True)
@@ -363,3 +363,33 @@ def test_unequal_shape_groups_match_separate_renders():
     first = render_coverage(pts[:, :2], size=24, fill_rule="evenodd", shape_index=[0, 0])
     second = render_coverage(pts[:, 2:], size=24, fill_rule="evenodd")
     assert torch.allclose(both, torch.cat([first, second], 1), atol=1e-6)
+
+
+@pytest.mark.parametrize("rule", ["evenodd", "nonzero"])
+def test_ragged_batch_renders_each_image_as_alone(rule):
+    # Two images of different path counts, shape counts and segment counts in one batch:
+    # (B, P) shape maps with -1 for padding paths, counts for padding segments (which start at
+    # the path's first anchor, then junk that must not draw), and a padding shape, which must
+    # render to nothing.
+    ring = [circle(0.35, 0.5, 0.25, 4), torch.roll(circle(0.35, 0.5, 0.1, 4).flip(0), 1, 0)]  # outer + hole
+    spike = star(0.75, 0.35, 0.2, 0.08, 5)  # 10 segments
+    img1 = [*ring, spike]  # shape 0: ring, shape 1: star
+    img2 = [star(0.5, 0.5, 0.4, 0.15, 4)]  # 8 segments, one shape
+    big = 11
+    pts = torch.rand(2, 3, 3 * big, 2, dtype=torch.float64, generator=torch.Generator().manual_seed(3))  # junk padding
+    counts = torch.zeros(2, 3, dtype=torch.long)
+    for b, paths in enumerate([img1, img2]):
+        for p, c in enumerate(paths):
+            pts[b, p, : len(c)] = c
+            pts[b, p, len(c)] = c[0]
+            counts[b, p] = len(c) // 3
+    sidx = torch.tensor([[0, 0, 1], [0, -1, -1]])
+    got = render_coverage(pts, size=(40, 48), tau=0.4, fill_rule=rule, shape_index=sidx, counts=counts, num_shapes=2)
+    alone1 = torch.cat([render_coverage(torch.stack(ring)[None], size=(40, 48), tau=0.4, fill_rule=rule,
+                                        shape_index=[0, 0]),
+                        render_coverage(spike[None, None], size=(40, 48), tau=0.4, fill_rule=rule)], 1)
+    alone2 = render_coverage(img2[0][None, None], size=(40, 48), tau=0.4, fill_rule=rule)
+    assert torch.allclose(got[0], alone1[0], atol=1e-9)
+    assert torch.allclose(got[1, :1], alone2[0], atol=1e-9)
+    assert got[1, 1].abs().max() == 0  # the padding shape draws nothing at all
+    assert (alone1[0, 0] > 0.5).sum() < (alone1[0, 0] > -1).sum()  # the ring has a hole, so the test can fail

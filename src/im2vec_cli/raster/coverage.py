@@ -133,21 +133,31 @@ def boundary_edges(verts: torch.Tensor, shape_index: torch.Tensor | None) -> tor
     with torch.no_grad():
         bsz, p, e, _ = verts.shape
         a, b = verts, torch.roll(verts, -1, 2)
-        d = b - a
-        normal = torch.stack([-d[..., 1], d[..., 0]], -1)
-        normal = normal / normal.norm(dim=-1, keepdim=True).clamp_min(_EPS) * 1e-3
-        mid = (a + b) / 2
-        probes = torch.cat([mid + normal, mid - normal], 2)  # (B, P, 2E, 2)
         if shape_index is None:
-            w = point_winding(probes.flatten(0, 1), a.flatten(0, 1), b.flatten(0, 1)).view(bsz, p, 2 * e)
-        else:
-            # every path's probes against every path's edges, then summed within each shape
-            q = probes.reshape(bsz, 1, p * 2 * e, 2).expand(bsz, p, p * 2 * e, 2)
-            w_src = point_winding(q.flatten(0, 1), a.flatten(0, 1), b.flatten(0, 1)).view(bsz, p, p, 2 * e)
-            same = (shape_index.view(-1, 1) == shape_index.view(1, -1)).to(w_src.dtype)  # (src, dst)
-            w = torch.einsum("bsdm,sd->bdm", w_src, same)  # (B, P, 2E)
-        inside = w != 0
+            return edge_boundary(a.flatten(0, 1), b.flatten(0, 1)).view(bsz, p, e)
+        # every path's probes against every path's edges, then summed within each shape
+        probes = _probes(a, b).reshape(bsz, 1, p * 2 * e, 2).expand(bsz, p, p * 2 * e, 2)
+        w_src = point_winding(probes.flatten(0, 1), a.flatten(0, 1), b.flatten(0, 1)).view(bsz, p, p, 2 * e)
+        same = (shape_index.view(-1, 1) == shape_index.view(1, -1)).to(w_src.dtype)  # (src, dst)
+        inside = torch.einsum("bsdm,sd->bdm", w_src, same) != 0  # (B, P, 2E)
         return inside[..., :e] != inside[..., e:]
+
+
+def edge_boundary(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """``boundary_edges`` of edge sets ``a -> b`` ``(N, E, 2)``, each set one shape: ``(N, E)`` bool."""
+    with torch.no_grad():
+        e = a.shape[1]
+        inside = point_winding(_probes(a, b), a, b) != 0  # (N, 2E)
+        return inside[..., :e] != inside[..., e:]
+
+
+def _probes(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """Points a hair to the left and to the right of each edge's midpoint: ``(..., 2E, 2)``."""
+    d = b - a
+    normal = torch.stack([-d[..., 1], d[..., 0]], -1)
+    normal = normal / normal.norm(dim=-1, keepdim=True).clamp_min(_EPS) * 1e-3
+    mid = (a + b) / 2
+    return torch.cat([mid + normal, mid - normal], -2)
 
 
 def nearest_edge_search(

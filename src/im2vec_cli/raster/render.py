@@ -11,7 +11,6 @@ two contours under ``"evenodd"`` has a true hole. ``None`` makes every path its 
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -21,7 +20,7 @@ from torch import nn
 from ..config import PYRAMID_MODES
 from .bezier import flatten_closed
 from .composite import composite_over, composite_soft
-from .coverage import boundary_edges, nearest_distance, signed_coverage, soft_coverage, winding_number
+from .coverage import _FAR, boundary_edges, edge_boundary, soft_coverage, winding_number
 from .pyramid import gaussian_pyramid, pyramid_sizes
 
 
@@ -33,14 +32,15 @@ def _size(size: int | Sequence[int]) -> tuple[int, int]:
 
 
 def shape_index_tensor(shape_index, num_paths: int, device: torch.device) -> torch.Tensor | None:
-    """Validate a path->shape map; returns a ``(P,)`` long tensor or ``None``."""
+    """Validate a path->shape map, ``(P,)`` or per image ``(B, P)`` (-1: a padding path that
+    belongs to no shape); returns a long tensor or ``None``."""
     if shape_index is None:
         return None
     idx = torch.as_tensor(shape_index, dtype=torch.long, device=device)
-    if idx.shape != (num_paths,):
+    if idx.dim() not in (1, 2) or idx.shape[-1] != num_paths:
         raise ValueError(f"shape_index must have one entry per path ({num_paths}), got {tuple(idx.shape)}")
-    if idx.numel() and idx.min() < 0:
-        raise ValueError("shape_index entries must be >= 0")
+    if idx.numel() and idx.min() < (-1 if idx.dim() == 2 else 0):
+        raise ValueError("shape_index entries must be >= 0 (-1 for padding paths in a (B, P) map)")
     return idx
 
 
@@ -51,6 +51,8 @@ def render_coverage(
     tau: float = 0.5,
     fill_rule: str = "nonzero",
     shape_index=None,
+    counts: torch.Tensor | None = None,
+    num_shapes: int | None = None,
     samples: int = 4,
     radius: float | None = None,
 ) -> torch.Tensor:
@@ -61,7 +63,13 @@ def render_coverage(
         size: ``H`` (square) or ``(H, W)``.
         tau: edge softness in pixels (``sigmoid(signed_distance / tau)``).
         fill_rule: ``"nonzero"`` or ``"evenodd"``.
-        shape_index: optional ``(P,)`` path -> shape map (see module doc).
+        shape_index: optional path -> shape map (see module doc): ``(P,)`` for every image, or
+            ``(B, P)`` per image, where -1 marks a padding path (drawn by no shape) and a shape
+            with no path renders to exactly nothing (ragged batches of different images).
+        counts: optional ``(B, P)`` segments of each path; the segments after them are padding,
+            drawn by nothing (the last real segment ends at the first padding point, which must
+            be the path's first anchor, as the decoder and refinement pad).
+        num_shapes: ``G`` for a ``(B, P)`` map (default: its largest entry + 1).
         samples: line segments per cubic when flattening.
         radius: distance clamp and culling radius in pixels; ``None`` means ``8 * tau``
             (coverage there is within 3e-4 of 0 or 1), ``math.inf`` disables culling.
@@ -76,25 +84,34 @@ def render_coverage(
     if fill_rule not in ("nonzero", "evenodd"):
         raise ValueError(f"fill_rule must be 'nonzero' or 'evenodd', got {fill_rule!r}")
     h, w = _size(size)
-    p = points.shape[1]
+    b, p = points.shape[:2]
     radius = 8.0 * tau if radius is None else float(radius)
     scale = torch.tensor([w, h], dtype=points.dtype, device=points.device)
     verts = flatten_closed(points * scale, samples)  # (B, P, E, 2) pixel frame
     sidx = shape_index_tensor(shape_index, p, points.device)
-    active = boundary_edges(verts, sidx) if fill_rule == "nonzero" else None  # (B, P, E)
-    ends = torch.roll(verts, shifts=-1, dims=2)  # each path closes on itself
-    counts = torch.bincount(sidx) if sidx is not None else None
-    if sidx is None or bool((counts == counts[0]).all()):
-        return _coverage_equal_shapes(verts, ends, active, sidx, counts, (h, w), radius, tau, fill_rule)
-    return _coverage_by_path(verts, ends, active, sidx, counts.numel(), (h, w), radius, tau, fill_rule)
+    if counts is None and sidx is not None and sidx.dim() == 1:
+        sizes = torch.bincount(sidx)
+        if bool((sizes == sizes[0]).all()):  # one edge set per shape as it stands: no gather
+            active = boundary_edges(verts, sidx) if fill_rule == "nonzero" else None  # (B, P, E)
+            return _coverage_equal_shapes(verts, active, sidx, sizes.numel(), (h, w), radius, tau, fill_rule)
+    if sidx is None:
+        sidx = torch.arange(p, device=points.device)
+        if counts is None:
+            active = boundary_edges(verts, None) if fill_rule == "nonzero" else None
+            return _coverage_equal_shapes(verts, active, sidx, p, (h, w), radius, tau, fill_rule)
+    sidx = sidx.expand(b, p)
+    g = int(sidx.max()) + 1 if num_shapes is None else num_shapes
+    e = verts.shape[2]  # real edges per path:
+    n = torch.full((b, p), e, device=points.device) if counts is None else counts.to(points.device).expand(b, p) * samples
+    return _coverage_rows(verts, sidx, n, g, (h, w), radius, tau, fill_rule)
 
 
-def _coverage_equal_shapes(verts, ends, active, sidx, counts, size, radius, tau, fill_rule) -> torch.Tensor:
+def _coverage_equal_shapes(verts, active, sidx, g, size, radius, tau, fill_rule) -> torch.Tensor:
     """Shapes of equal size (one path each, or one shape of all paths): each shape is a single
     edge set, so winding and nearest edge are computed per shape directly. -> ``(B, G, H, W)``."""
-    (b, p), (h, w) = verts.shape[:2], size
-    g = p if sidx is None else counts.numel()
-    order = torch.arange(p, device=verts.device) if sidx is None else torch.argsort(sidx, stable=True)
+    b, (h, w) = verts.shape[0], size
+    ends = torch.roll(verts, shifts=-1, dims=2)  # each path closes on itself
+    order = torch.argsort(sidx, stable=True)
     a = verts[:, order].reshape(b * g, -1, 2)  # (B*G, (P/G)*E, 2)
     bb = ends[:, order].reshape(b * g, -1, 2)
     act = active[:, order].reshape(b * g, -1) if active is not None else None
@@ -103,19 +120,40 @@ def _coverage_equal_shapes(verts, ends, active, sidx, counts, size, radius, tau,
     return cov.view(b, g, h, w)
 
 
-def _coverage_by_path(verts, ends, active, sidx, g, size, radius, tau, fill_rule) -> torch.Tensor:
-    """Shapes of different sizes: winding and distance per path, then summed (winding) and
-    minimised (distance) over each shape's paths. -> ``(B, G, H, W)``."""
+def _coverage_rows(verts, sidx, n, g, size, radius, tau, fill_rule) -> torch.Tensor:
+    """Shapes of any size: the edges of each (image, shape) gathered into one row, padded with
+    an edge parked far away (never near a pixel, crossing no scanline). -> ``(B, G, H, W)``.
+
+    Args:
+        verts: ``(B, P, E, 2)`` pixel frame; sidx ``(B, P)`` (-1: padding path); n ``(B, P)``
+            real edges of each path (its first ``n``; the ``n``-th vertex closes on vertex 0).
+    """
     (b, p, e), (h, w) = verts.shape[:3], size
-    a, bb = verts.reshape(b * p, e, 2), ends.reshape(b * p, e, 2)
-    act = active.reshape(b * p, e) if active is not None else None
-    wind = winding_number(a, bb, h, w).view(b, p, h, w)
-    dist = nearest_distance(a, bb, h, w, radius=radius, active=act)[0].view(b, p, h, w)  # (B, P, H, W)
-    wind = torch.zeros(b, g, h, w, dtype=wind.dtype, device=wind.device).index_add_(1, sidx, wind)
-    member = torch.arange(g, device=verts.device).view(g, 1) == sidx.view(1, p)  # (G, P)
-    inf = torch.tensor(math.inf, dtype=dist.dtype, device=dist.device)
-    dist = torch.where(member.view(1, g, p, 1, 1), dist.unsqueeze(1), inf).min(dim=2).values  # (B, G, H, W)
-    return signed_coverage(dist, wind, radius, tau, fill_rule)
+    dev = verts.device
+    with torch.no_grad():
+        k = torch.arange(e, device=dev)
+        real = (k < n.unsqueeze(-1)) & (sidx >= 0).unsqueeze(-1)  # (B, P, E)
+        first = (torch.arange(b * p, device=dev) * e).view(b, p, 1)
+        start = (first + k).masked_select(real)  # flat vertex ids of the real edges, in path order
+        end = torch.where(k + 1 < n.unsqueeze(-1), first + k + 1, first).masked_select(real)
+        row = (torch.arange(b, device=dev).view(b, 1, 1) * g + sidx.unsqueeze(-1)).expand(b, p, e).masked_select(real)
+        row, order = torch.sort(row, stable=True)
+        length = torch.bincount(row, minlength=b * g)  # (B*G,)
+        offset = torch.cumsum(length, 0) - length
+        slot = torch.arange(row.numel(), device=dev) - offset[row]
+        pad = b * p * e  # the parked vertex
+        width_ = max(1, int(length.max()) if length.numel() else 1)
+        ia = torch.full((b * g, width_), pad, dtype=torch.long, device=dev)
+        ib = ia.clone()
+        ia[row, slot], ib[row, slot] = start[order], end[order]
+    far = torch.full((1, 2), _FAR, dtype=verts.dtype, device=dev)
+    table = torch.cat([verts.reshape(-1, 2), far])
+    a, bb = table[ia], table[ib]  # (B*G, L, 2)
+    act = edge_boundary(a, bb) if fill_rule == "nonzero" else None
+    wind = winding_number(a, bb, h, w)
+    cov = soft_coverage(a, bb, wind, h, w, radius=radius, tau=tau, fill_rule=fill_rule, active=act)
+    drawn = (length > 0).to(cov.dtype).view(b, g, 1, 1)  # a shape without paths renders to nothing
+    return cov.view(b, g, h, w) * drawn
 
 
 def render_paths(
@@ -127,6 +165,7 @@ def render_paths(
     tau: float = 0.5,
     fill_rule: str = "nonzero",
     shape_index=None,
+    counts: torch.Tensor | None = None,
     samples: int = 4,
     radius: float | None = None,
     composite: str = "over",
@@ -146,9 +185,8 @@ def render_paths(
     Returns:
         ``(B, 3, H, W)`` image in [0, 1] over a ``background`` grey.
     """
-    cov = render_coverage(
-        points, size=size, tau=tau, fill_rule=fill_rule, shape_index=shape_index, samples=samples, radius=radius
-    )
+    cov = render_coverage(points, size=size, tau=tau, fill_rule=fill_rule, shape_index=shape_index, counts=counts,
+                          num_shapes=colors.shape[1], samples=samples, radius=radius)
     if depth is None:
         depth = torch.arange(cov.shape[1], dtype=cov.dtype, device=cov.device).expand(cov.shape[0], -1)
     if composite == "over":

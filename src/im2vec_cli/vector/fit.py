@@ -101,21 +101,25 @@ def _end_tangent(pts: np.ndarray, at_start: bool, reach: int) -> np.ndarray:
 def tangent_cubic(pts: np.ndarray, u: np.ndarray, t0: np.ndarray, t1: np.ndarray) -> np.ndarray:
     """Cubic through ``pts[0]`` and ``pts[-1]`` with end tangents ``t0``/``t1`` whose two handle
     lengths fit ``pts (N, 2)`` at parameters ``u (N,)`` in least squares (a third of the chord
-    each when that fails or gives a loop): ``(4, 2)``."""
+    each when that fails or gives a loop): ``(4, 2)``.
+
+    The 2x2 normal equations are solved in closed form: this runs thousands of times per
+    picture on a few dozen points, where NumPy's per-call overhead is the cost."""
     p0, p3 = pts[0], pts[-1]
-    chord = np.hypot(*(p3 - p0))
-    b = np.stack([(1 - u) ** 3, 3 * (1 - u) ** 2 * u, 3 * (1 - u) * u**2, u**3], 1)
-    a1, a2 = b[:, 1:2] * t0, b[:, 2:3] * t1
-    rest = pts - (b[:, 0:1] + b[:, 1:2]) * p0 - (b[:, 2:3] + b[:, 3:4]) * p3
-    m = np.array([[np.sum(a1 * a1), np.sum(a1 * a2)], [np.sum(a1 * a2), np.sum(a2 * a2)]])
-    r = np.array([np.sum(a1 * rest), np.sum(a2 * rest)])
-    try:
-        alpha = np.linalg.solve(m, r)
-    except np.linalg.LinAlgError:
-        alpha = np.array([chord / 3, chord / 3])
-    if not ((alpha > 1e-3 * chord) & (alpha < 2 * chord + 1)).all():
-        alpha = np.array([chord / 3, chord / 3])
-    return np.stack([p0, p0 + alpha[0] * t0, p3 + alpha[1] * t1, p3])
+    chord = float(np.hypot(*(p3 - p0)))
+    v = 1 - u
+    b0, b1, b2, b3 = v * v * v, 3 * v * v * u, 3 * v * u * u, u * u * u
+    rest = pts - np.outer(b0 + b1, p0) - np.outer(b2 + b3, p3)  # (N, 2)
+    d00, d01, d11 = float(b1 @ b1) * float(t0 @ t0), float(b1 @ b2) * float(t0 @ t1), float(b2 @ b2) * float(t1 @ t1)
+    r0, r1 = float(b1 @ (rest @ t0)), float(b2 @ (rest @ t1))
+    det = d00 * d11 - d01 * d01
+    lo, hi = 1e-3 * chord, 2 * chord + 1
+    a0 = a1 = chord / 3
+    if abs(det) > 1e-12 * max(d00 * d11, 1e-300):
+        x0, x1 = (r0 * d11 - d01 * r1) / det, (d00 * r1 - d01 * r0) / det
+        if lo < x0 < hi and lo < x1 < hi:
+            a0, a1 = x0, x1
+    return np.stack([p0, p0 + a0 * t0, p3 + a1 * t1, p3])
 
 
 def newton_step(ctrl: np.ndarray, pts: np.ndarray, u: np.ndarray) -> np.ndarray:
@@ -123,12 +127,14 @@ def newton_step(ctrl: np.ndarray, pts: np.ndarray, u: np.ndarray) -> np.ndarray:
     d1 = 3 * np.diff(ctrl, axis=0)
     d2 = 2 * np.diff(d1, axis=0)
     t = u[:, None]
-    q = cubic_at(ctrl, u) - pts
-    q1 = (1 - t) ** 2 * d1[0] + 2 * (1 - t) * t * d1[1] + t**2 * d1[2]
-    q2 = (1 - t) * d2[0] + t * d2[1]
-    den = (q1 * q1).sum(1) + (q * q2).sum(1)
+    v = 1 - t
+    q = v * v * v * ctrl[0] + 3 * v * v * t * ctrl[1] + 3 * v * t * t * ctrl[2] + t * t * t * ctrl[3] - pts
+    q1 = v * v * d1[0] + 2 * v * t * d1[1] + t * t * d1[2]
+    q2 = v * d2[0] + t * d2[1]
+    num = np.einsum("ij,ij->i", q, q1)
+    den = np.einsum("ij,ij->i", q1, q1) + np.einsum("ij,ij->i", q, q2)
     ok = np.abs(den) > 1e-12
-    return np.clip(u - np.where(ok, (q * q1).sum(1) / np.where(ok, den, 1), 0), 0, 1)
+    return np.clip(u - np.where(ok, num / np.where(ok, den, 1), 0), 0, 1)
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> float:
