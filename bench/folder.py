@@ -9,18 +9,24 @@ from fontTools, rendered at 4x, scores IoU@4x.
 
 Rows (wall seconds as a user runs them: process start and model load included):
 
-- ``im2vec`` (batched): the default, chunks of 32 refined together, `-j 1` and `-j 2`;
-- one image at a time: ``refine()`` per glyph in this process (the model already loaded),
-  on an even subset of ``--sample`` glyphs, the per-glyph time scaled to the folder; its
-  IoU is compared with the batched run's on the same glyphs (target: within 0.002);
+- ``im2vec DIR -o OUT``, the defaults for a folder this large: refined in chunks of 32, in
+  one worker process per core (``-j``), through ``torch.compile`` (``--compile``); once with
+  an empty compile cache (a fresh machine) and once with it warm (every later run);
+- ``-j 1 --no-compile``: one process, eager kernels;
+- one image at a time: ``refine()`` per glyph (model loaded) on an even subset of
+  ``--sample`` glyphs, the per-glyph time scaled to the folder, with this code and, with
+  ``--before DIR`` (a checkout of an older commit, e.g. ``git worktree add DIR 56b5f3e``), with
+  that code (how a folder was refined before batching); their IoU@4x against the true
+  outline is compared with the default run's on the same glyphs (target: within 0.002);
 - ``--no-refine``: the model alone; its throughput after start-up subtracts one 1-glyph run;
 - potrace over the same glyphs as PGM files.
 
-Peak memory (max RSS, `/usr/bin/time`) of each command; ``--memory N`` adds a `--no-refine`
-run over N files (10,000 for the issue's bound; refinement holds one chunk at a time as well).
+Peak memory (max RSS, `/usr/bin/time`; with worker processes, of the parent alone: each
+worker holds about as much again) of each command; ``--memory N`` adds a `--no-refine` run over
+N files (10,000 for the issue's bound; refinement holds one chunk per worker at a time as well).
 
 Run: ``make bench-folder`` or ``python bench/folder.py [--n 1000] [--sample 100] [--memory 10000]
-[--markdown docs/FOLDERS.md]``.
+[--before DIR] [--markdown docs/FOLDERS.md]``.
 """
 
 from __future__ import annotations
@@ -50,7 +56,6 @@ SIZE, UP = 64, 4
 CHARS = "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789"
 FAMILIES = {"FreeSans", "FreeSerif", "FreeMono", "Lato"}
 EXE = [sys.executable, "-m", "im2vec_cli"]
-BEFORE_MS = 467  # per-image refinement before this change (commit 56b5f3e): docs/OUTLINES.md, 620 of these glyphs
 
 
 def glyph_set(n: int) -> list[dict]:
@@ -81,10 +86,11 @@ def glyph_set(n: int) -> list[dict]:
     return rows, len(seen)
 
 
-def timed(cmd: list[str]) -> tuple[float, float]:
+def timed(cmd: list[str], env: dict | None = None) -> tuple[float, float]:
     """Wall seconds and peak memory (MiB) of one command."""
     t = time.perf_counter()
-    r = subprocess.run(["/usr/bin/time", "-f", "%M", *cmd], capture_output=True, text=True)
+    r = subprocess.run(["/usr/bin/time", "-f", "%M", *cmd], capture_output=True, text=True,
+                       env=None if env is None else {**os.environ, **env})
     wall = time.perf_counter() - t
     if r.returncode != 0:
         raise SystemExit(f"{' '.join(cmd[:6])} ... failed:\n{r.stderr[-2000:]}")
@@ -96,22 +102,36 @@ def iou(svg: str, truth: np.ndarray) -> float:
     return float((got & truth).sum() / max((got | truth).sum(), 1))
 
 
-def per_image(rows: list[dict], model: str) -> tuple[float, list[str]]:
-    """``refine()`` one glyph at a time (what a folder cost before batching): ms per glyph, SVGs."""
-    import torch
-
-    from im2vec_cli.files import load_image
-    from im2vec_cli.model.pretrained import from_pretrained
-    from im2vec_cli.raster import set_compile
-    from im2vec_cli.refine import EFFORTS, refine
-
-    set_compile(False)  # as the API runs it
-    m = from_pretrained(model, torch.device("cpu"))
-    imgs = [load_image(io.BytesIO(r["png"])) for r in rows]
-    refine(m, imgs[0], settings=EFFORTS["fast"])  # warm-up
-    t = time.perf_counter()
-    out = [to_svg(refine(m, im, settings=EFFORTS["fast"])[0]) for im in imgs]
-    return 1e3 * (time.perf_counter() - t) / len(imgs), out
+def per_image(src: Path, pngs: Path, out: Path, model: str) -> float:
+    """``refine()`` one glyph at a time with the code under ``src`` (in a fresh process, so that an
+    older checkout can be measured): ms per glyph; the SVGs go to ``out``."""
+    code = f"""
+import sys, time
+sys.path.insert(0, {str(src / "src")!r})
+import torch
+from pathlib import Path
+from im2vec_cli.files import load_image
+from im2vec_cli.model.pretrained import from_pretrained
+from im2vec_cli.raster import set_compile
+from im2vec_cli.refine import EFFORTS, refine
+from im2vec_cli.vector import to_svg
+set_compile(False)  # as the API runs one image
+m = from_pretrained({model!r}, torch.device("cpu"))
+files = sorted(Path({str(pngs)!r}).glob("*.png"))
+imgs = [load_image(f) for f in files]
+refine(m, imgs[0], settings=EFFORTS["fast"])  # warm-up
+t = time.perf_counter()
+svgs = [to_svg(refine(m, im, settings=EFFORTS["fast"])[0]) for im in imgs]
+ms = 1e3 * (time.perf_counter() - t) / len(imgs)
+for f, s in zip(files, svgs):
+    (Path({str(out)!r}) / (f.stem + ".svg")).write_text(s)
+print(ms)
+"""
+    out.mkdir(parents=True, exist_ok=True)
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=src)
+    if r.returncode != 0:
+        raise SystemExit(f"one image at a time with {src} failed:\n{r.stderr[-2000:]}")
+    return float(r.stdout.strip().splitlines()[-1])
 
 
 def main():
@@ -119,6 +139,7 @@ def main():
     ap.add_argument("--n", type=int, default=1000)
     ap.add_argument("--sample", type=int, default=100, help="glyphs refined one at a time")
     ap.add_argument("--memory", type=int, default=0, help="files in a --no-refine run for peak memory (0: skip)")
+    ap.add_argument("--before", type=Path, default=None, help="a checkout of an older commit, refined one at a time too")
     ap.add_argument("--model", default="fonts")
     ap.add_argument("--markdown", default=None)
     args = ap.parse_args()
@@ -127,35 +148,47 @@ def main():
     print(f"{n} glyphs of {faces} FreeFont/Lato faces at {SIZE} px", flush=True)
     res = {}
     with tempfile.TemporaryDirectory() as tmp:
-        src, pgm = Path(tmp, "png"), Path(tmp, "pgm")
-        src.mkdir(), pgm.mkdir()
+        src, pgm, few = Path(tmp, "png"), Path(tmp, "pgm"), Path(tmp, "sample")
+        for d in (src, pgm, few):
+            d.mkdir()
+        sample = [rows[round(i * (n - 1) / (args.sample - 1))] for i in range(args.sample)]
         for r in rows:
             (src / f"{r['name']}.png").write_bytes(r["png"])
             (pgm / f"{r['name']}.pgm").write_bytes(_pgm(Image.open(io.BytesIO(r["png"]))))
+        for r in sample:
+            (few / f"{r['name']}.png").write_bytes(r["png"])
         one = Path(tmp, "one")
         one.mkdir()
         (one / "a.png").write_bytes(rows[0]["png"])
         base = ["vectorize", "--model", args.model]
         start, _ = timed(EXE + [*base, str(one / "a.png"), "-o", str(Path(tmp, "a.svg")), "--no-refine"])
-        runs = {"im2vec (batched, default)": [], "im2vec -j 2": ["-j", "2"], "im2vec --no-refine": ["--no-refine"]}
+        cache = {"TORCHINDUCTOR_CACHE_DIR": str(Path(tmp, "inductor"))}  # empty at first: a fresh machine
+        jobs = min(os.cpu_count() or 1, 8)
+        runs = {f"defaults (-j {jobs}, compile), cold cache": ([], cache), f"defaults (-j {jobs}, compile), warm cache":
+                ([], cache), "-j 1 --no-compile": (["-j", "1", "--no-compile"], None), "--no-refine": (["--no-refine"], None)}
         outs = {}
-        for name, extra in runs.items():
-            out = Path(tmp, name.replace(" ", "_"))
-            wall, mib = timed(EXE + [*base, str(src), "-o", str(out), *extra])
+        for name, (extra, env) in runs.items():
+            out = Path(tmp, f"out{len(outs)}")
+            wall, mib = timed(EXE + [*base, str(src), "-o", str(out), *extra], env)
             outs[name] = out
             res[name] = {"s": wall, "mib": mib, "per_s": n / wall}
             print(f"{name}: {wall:.1f} s, {n / wall:.1f} glyphs/s, peak {mib:.0f} MiB", flush=True)
-        res["im2vec --no-refine"]["after_start"] = n / max(res["im2vec --no-refine"]["s"] - start, 1e-9)
+        res["--no-refine"]["after_start"] = n / max(res["--no-refine"]["s"] - start, 1e-9)
         wall, mib = timed(["potrace", "-s", *sorted(str(p) for p in pgm.glob("*.pgm"))])
         res["potrace"] = {"s": wall, "mib": mib, "per_s": n / wall}
-        sample = [rows[round(i * (n - 1) / (args.sample - 1))] for i in range(args.sample)]
-        ms, svgs = per_image(sample, args.model)
-        res["one image at a time"] = {"s": ms * n / 1e3, "per_s": 1e3 / ms, "ms": ms}
-        truths = [rasterize_svg(r["svg"], SIZE * UP, SIZE * UP).mean(-1) < 0.5 for r in sample]
-        batched = [(outs["im2vec (batched, default)"] / f"{r['name']}.svg").read_text() for r in sample]
-        res["iou_one"] = float(np.mean([iou(s, t) for s, t in zip(svgs, truths)]))
-        res["iou_batched"] = float(np.mean([iou(s, t) for s, t in zip(batched, truths)]))
-        res["identical"] = sum(a == b for a, b in zip(svgs, batched))
+        truths = {r["name"]: rasterize_svg(r["svg"], SIZE * UP, SIZE * UP).mean(-1) < 0.5 for r in sample}
+        default = outs[next(iter(runs))]
+        res["iou"] = {"defaults": _mean_iou(default, truths)}
+        for name, code in [("one image at a time", ROOT), ("one image at a time, before", args.before)]:
+            if code is None:
+                continue
+            svgs = Path(tmp, name.replace(" ", "_").replace(",", ""))
+            ms = per_image(code.resolve(), few, svgs, args.model)
+            res[name] = {"s": ms * n / 1e3, "per_s": 1e3 / ms, "ms": ms}
+            res["iou"][name] = _mean_iou(svgs, truths)
+            print(f"{name}: {ms:.0f} ms per glyph, IoU@4x {res['iou'][name]:.4f}", flush=True)
+        res["identical"] = sum((default / f"{k}.svg").read_text() == (Path(tmp, "one_image_at_a_time") / f"{k}.svg")
+                               .read_text() for k in truths)
         if args.memory:
             big = Path(tmp, "big")
             big.mkdir()
@@ -169,28 +202,36 @@ def main():
         Path(args.markdown).write_text(text)
 
 
+def _mean_iou(folder: Path, truths: dict) -> float:
+    return float(np.mean([iou((folder / f"{k}.svg").read_text(), t) for k, t in truths.items()]))
+
+
 def markdown(res: dict, n: int, faces: int, start: float, args) -> str:
     one = res["one image at a time"]
+    before = res.get("one image at a time, before")
     lines = [f"# Folders: batched refinement ({n} held-out glyphs, one run)", "",
-             f"`python bench/folder.py --n {args.n} --sample {args.sample} --memory {args.memory}` on this "
-             f"machine ({os.cpu_count()} cores). Glyphs: every face of GNU FreeFont and Lato ({faces} faces, "
-             "packages no shipped model trained on), 64 px. Wall time of one command over the folder, process "
-             "start and model load included; one image at a time: `refine()` per glyph in-process on an even "
-             f"subset of {args.sample}, scaled to the folder.", "",
-             "| run | wall s | glyphs/s | x one image at a time | peak MiB |", "|---|---|---|---|---|"]
-    for name in ["im2vec (batched, default)", "im2vec -j 2", "one image at a time", "im2vec --no-refine", "potrace"]:
+             f"`python bench/folder.py --n {args.n} --sample {args.sample} --memory {args.memory}"
+             + (f" --before {args.before}" if args.before else "") + f"` on this machine ({os.cpu_count()} cores). "
+             f"Glyphs: every face of GNU FreeFont and Lato ({faces} faces, packages no shipped model trained on), "
+             "64 px. Wall time of one `im2vec vectorize DIR -o OUT` over the folder, process start and model load "
+             f"included; one image at a time: `refine()` per glyph on an even subset of {args.sample}, scaled to "
+             "the folder. Peak memory of the parent process (each worker holds about as much again).", "",
+             "| run | wall s | glyphs/s | x one at a time (this code) | x one at a time (before) | peak MiB |",
+             "|---|---|---|---|---|---|"]
+    names = [k for k in res if isinstance(res[k], dict) and "per_s" in res[k]]
+    for name in names:
         r = res[name]
         mib = f"{r['mib']:.0f}" if "mib" in r else "-"
-        lines.append(f"| {name} | {r['s']:.1f} | {r['per_s']:.1f} | {r['per_s'] / one['per_s']:.2f} | {mib} |")
-    best = max(res["im2vec (batched, default)"]["per_s"], res["im2vec -j 2"]["per_s"])
-    lines += ["", f"- One image at a time: {one['ms']:.0f} ms per glyph. Before this change (commit 56b5f3e, "
-              f"docs/OUTLINES.md, the same faces) it was {BEFORE_MS} ms: the best batched run is "
-              f"{best * BEFORE_MS / 1e3:.1f}x that (target >= 10x).",
-              f"- Fidelity on the {args.sample} glyphs: IoU@4x {res['iou_batched']:.4f} batched vs "
-              f"{res['iou_one']:.4f} one at a time (difference {res['iou_batched'] - res['iou_one']:+.4f}, target "
-              f"within 0.002); {res['identical']} of {args.sample} SVGs byte-identical.",
+        x_before = f"{r['per_s'] / before['per_s']:.2f}" if before else "-"
+        lines.append(f"| {name} | {r['s']:.1f} | {r['per_s']:.1f} | {r['per_s'] / one['per_s']:.2f} | {x_before} | {mib} |")
+    ious = ", ".join(f"{k} {v:.4f}" for k, v in res["iou"].items())
+    lines += ["", f"- One image at a time: {one['ms']:.0f} ms per glyph with this code"
+              + (f", {before['ms']:.0f} ms with the code before batching" if before else "") + ".",
+              f"- Fidelity, IoU@4x against the true outline on the {args.sample} glyphs: {ious} (target: the "
+              f"default within 0.002 of one at a time); {res['identical']} of {args.sample} SVGs byte-identical "
+              "to one at a time.",
               f"- Model only after start-up ({start:.1f} s for one glyph): "
-              f"{res['im2vec --no-refine']['after_start']:.0f} glyphs/s (target >= 500)."]
+              f"{res['--no-refine']['after_start']:.0f} glyphs/s (target >= 500)."]
     if "memory" in res:
         m = res["memory"]
         lines.append(f"- {m['files']} files, --no-refine: {m['s']:.1f} s, peak {m['mib']:.0f} MiB (target <= 2048).")

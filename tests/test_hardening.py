@@ -750,8 +750,13 @@ def test_real_processes_stdin_closed_and_stdout_full(tmp_path, model_dir):
     assert r.returncode == 2 and "Traceback" not in r.stderr and "No such option" in r.stderr
 
 
-def test_batch_of_1000_with_5_percent_bad(tmp_path, model_dir):
-    """Every good file is written, every bad one is listed, exit 1; images are streamed."""
+def test_batch_of_1000_with_5_percent_bad(tmp_path, model_dir, monkeypatch):
+    """Every good file is written (refined, in worker processes: the defaults for a folder this
+    large), every bad one is listed, exit 1; images are streamed."""
+    import im2vec_cli.parallel as parallel
+
+    jobs, real = [], parallel.vectorize_chunks
+    monkeypatch.setattr(parallel, "vectorize_chunks", lambda *a, **kw: jobs.append(kw) or real(*a, **kw))
     d = tmp_path / "in"
     d.mkdir()
     good = _glyph_like(32)
@@ -770,6 +775,8 @@ def test_batch_of_1000_with_5_percent_bad(tmp_path, model_dir):
     assert len(errors) == 51 and errors[-1] == "Error: 50 of 1000 inputs failed"
     assert {line.split(":")[1].strip().rsplit("/", 1)[-1] for line in errors[:-1]} == {
         f"g{i:04d}.png" for i in bad}
+    expected = min(os.cpu_count() or 1, 8)
+    assert (jobs[0]["jobs"], jobs[0]["refine"], jobs[0]["compile"]) == (expected, True, True) if expected > 1 else not jobs
 
 
 @pytest.mark.parametrize("refine", [True, False])
@@ -788,10 +795,25 @@ def test_batch_streams_in_chunks(tmp_path, model_dir, monkeypatch, refine):
     mod, name = (refinement, "refine_batch") if refine else (infer, "vectorize")
     real = getattr(mod, name)
     monkeypatch.setattr(mod, name, lambda model, images, **kw: sizes.append(len(images)) or real(model, images, **kw))
-    res = CliRunner().invoke(cli, ["vectorize", str(d), "-o", str(tmp_path / "out"), "--model", model_dir]
+    res = CliRunner().invoke(cli, ["vectorize", str(d), "-o", str(tmp_path / "out"), "--model", model_dir, "-j", "1"]
                              + ([] if refine else ["--no-refine"]))
     assert res.exit_code == 0 and sum(sizes) == 70 and max(sizes) == cli_mod.VECTORIZE_CHUNK
     assert len(list((tmp_path / "out").glob("*.svg"))) == 70
+
+
+def test_worker_processes_write_what_one_process_writes(tmp_path, model_dir):
+    """`-j 2` (chunks refined in two worker processes) writes byte for byte what `-j 1` writes,
+    on a folder of several image sizes (several refinement groups)."""
+    d = tmp_path / "in"
+    d.mkdir()
+    for i in range(12):
+        _glyph_like(30 + i % 4).save(d / f"g{i:02d}.png")
+    outs = []
+    for jobs in ("1", "2"):
+        res = CliRunner().invoke(cli, ["vectorize", str(d), "-o", str(tmp_path / jobs), "--model", model_dir, "-j", jobs])
+        assert res.exit_code == 0, res.output
+        outs.append({p.name: p.read_text() for p in (tmp_path / jobs).glob("*.svg")})
+    assert len(outs[0]) == 12 and outs[0] == outs[1]
 
 
 @pytest.mark.parametrize("jobs", ["1", "2"])

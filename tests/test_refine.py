@@ -140,7 +140,9 @@ def test_refine_adam_matches_torch_adam():
     assert torch.allclose(a1, b1, atol=1e-6) and torch.allclose(a2, b2, atol=1e-6)
 
 
-BATCH_TOLERANCE = 0.002  # mean |difference| of the 4x cairo renders (0..1), and the same segment count
+BATCH_TOLERANCE = 0.002  # mean |difference| of the 4x cairo renders (0..1); segment counts equal for clean
+# outlines, within 10% (at least 2) for the model's paths, whose pruning and merging are thresholds that float
+# rounding between a batch and one image can tip (measured: at most 38 vs 36, renders 0.0007 apart)
 
 
 @pytest.mark.skipif(not (REPO_MODELS / "fonts" / "config.json").exists(), reason="no shipped fonts model")
@@ -160,7 +162,8 @@ def test_batched_refinement_matches_one_image_at_a_time(parts):
     for img, got in zip(images, together):
         alone = refine(model, img, parts=parts, settings=settings)[0]
         h, w = img.shape[1:]
-        assert got.num_segments == alone.num_segments
+        slack = 0 if parts == "clean" else max(2, alone.num_segments // 10)
+        assert abs(got.num_segments - alone.num_segments) <= slack
         a, b = (rasterize_svg(to_svg(v), 4 * w, 4 * h) for v in (got, alone))
         assert np.abs(a - b).mean() <= BATCH_TOLERANCE
     assert together[2].num_segments == 4 and together[-1].width == 40  # the flat square; the other size kept

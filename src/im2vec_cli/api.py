@@ -47,7 +47,7 @@ def _model(model):
 def vectorize(images, model=DEFAULT_MODEL, *, refine: bool = True, effort: str = "fast", parts: str = "clean",
               tolerance: float | None = None, colors: int | None = None, segments: int | str | None = None,
               quality: float | None = None, max_paths: int | None = None,
-              simplify_px: float | None = None) -> VectorImage | list[VectorImage]:
+              simplify_px: float | None = None, compile: bool = False) -> VectorImage | list[VectorImage]:
     """Vectorize one picture (or a list of them) into closed cubic paths.
 
     Args:
@@ -69,6 +69,11 @@ def vectorize(images, model=DEFAULT_MODEL, *, refine: bool = True, effort: str =
         max_paths: keep at most this many paths (the largest).
         simplify_px: merge segments while the outline moves less than this many input pixels
             (default 0.25 with ``refine``, else 0).
+        compile: run the renderer's kernels through ``torch.compile`` while refining. Each new
+            image size compiles afresh (about 20 s per size on 2 CPU cores the first time on a
+            machine, a few seconds from the cache after); it then refines 1.3x faster, so it
+            pays for many pictures of one size (``vectorize DIR`` turns it on from
+            ``COMPILE_MIN_IMAGES``).
 
     Returns:
         One ``VectorImage`` per picture (a list for a list), in each picture's pixel frame.
@@ -94,7 +99,7 @@ def vectorize(images, model=DEFAULT_MODEL, *, refine: bool = True, effort: str =
             settings = dataclasses.replace(settings, simplify_tol=simplify_px)
         if tolerance is not None:
             settings = dataclasses.replace(settings, tolerance=float(tolerance))
-        with compiling(False):  # every input shape would recompile: far more than it saves
+        with compiling(compile):  # off by default: each new image size would compile afresh
             out = [v for v, _ in refinement.refine_batch(model, pictures, settings=settings, parts=parts,
                                                          colors=colors, **kw)]
     else:

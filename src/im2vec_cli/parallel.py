@@ -1,9 +1,8 @@
 """Worker processes for vectorizing many pictures (``vectorize --jobs N``).
 
 Refinement is partly Python and NumPy work on one core (tracing, curve fitting, untangling)
-and partly batched tensor work; on 2 cores, two processes of one thread each refined 128
-held-out glyphs 1.26x faster than one process of two threads (bench/vectorize.py measures
-it). Each worker loads its own copy of the model; chunks of pictures go out and vector
+and partly batched tensor work; on 2 cores, two processes of one thread each refine a folder
+of held-out glyphs about 1.4x faster than one process of two threads (bench/folder.py). Each worker loads its own copy of the model; chunks of pictures go out and vector
 images come back, in order. Nothing here prints; Ctrl-C is the parent's to handle (the
 workers ignore it and are ended with the pool).
 """
@@ -48,6 +47,7 @@ def vectorize_chunks(chunks: Iterable[list], model_ref: str, *, jobs: int, devic
         raise ValueError(f"jobs must be >= 1, got {jobs}")
     threads = max(1, (os.cpu_count() or 1) // jobs)
     pool = multiprocessing.get_context("spawn").Pool(jobs, _init, (model_ref, device, seed, threads, options))
+    done = False
     try:
         pending: collections.deque = collections.deque()
         for chunk in chunks:
@@ -56,7 +56,10 @@ def vectorize_chunks(chunks: Iterable[list], model_ref: str, *, jobs: int, devic
                 yield pending.popleft().get()
         while pending:
             yield pending.popleft().get()
-        pool.close()
+        done = True
     finally:
-        pool.terminate()
+        if done:  # let the workers exit on their own (and end their compile workers, if any)
+            pool.close()
+        else:  # Ctrl-C, an error, or the caller stopped early: end them now
+            pool.terminate()
         pool.join()

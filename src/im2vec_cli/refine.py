@@ -270,7 +270,7 @@ class _Fitter:
             if joins is not None:
                 _align(pts, joins, self.size)
             if on_step:
-                on_step({"stage": stage, "step": i, "loss": float(fit.mean()), "tau": tau, "images": len(live)})
+                on_step({"stage": stage, "step": i, "loss": float(fit.detach().mean()), "tau": tau, "images": len(live)})
             for k in live:
                 taken[k] = i + 1
             if i < anneal:  # compare losses only at the final tau
@@ -424,7 +424,7 @@ class Refinement:
                 if _converged(hist[j], s):
                     stopped.append(j)
             if self.on_step:
-                self.on_step({"stage": "latent", "step": i, "loss": float(loss.mean()), "images": len(live)})
+                self.on_step({"stage": "latent", "step": i, "loss": float(loss.detach().mean()), "images": len(live)})
             live = [j for j in live if j not in stopped]
             if not live:
                 break

@@ -16,7 +16,7 @@ from im2vec_cli.raster import (
     render_pyramid,
     render_supersampled,
 )
-from im2vec_cli.raster.coverage import nearest_edge_search, winding_number
+from im2vec_cli.raster.coverage import nearest_edge_search
 from im2vec_cli.vector import VectorImage, VectorShape, rasterize_svg, to_svg, to_tensors
 from tests.helpers import circle, polyline_as_cubic, star
 
@@ -157,11 +157,17 @@ def test_same_contours_evenodd_overlap_is_hole():
         check_agreement(shape_image([a, b], rule))
 
 
-def test_winding_scanline_matches_bruteforce():
+@pytest.mark.parametrize("impl", ["sparse", "dense"])
+def test_winding_scanline_matches_bruteforce(impl):
+    # the eager per-crossing count and the compiled kernel's dense one, on edges that leave the
+    # raster on every side, and a horizontal one (which crosses no row)
+    from im2vec_cli.raster.coverage import _winding, _winding_sparse
+
     g = torch.Generator().manual_seed(3)
-    verts = torch.rand(3, 17, 2, generator=g, dtype=torch.float64) * 20
+    verts = torch.rand(3, 17, 2, generator=g, dtype=torch.float64) * 30 - 5
+    verts[0, 4, 1] = verts[0, 5, 1]
     a, b = verts, torch.roll(verts, -1, 1)
-    wind = winding_number(a, b, 20, 20)
+    wind = (_winding_sparse if impl == "sparse" else _winding.eager)(a, b, 20, 20)
     ys, xs = torch.meshgrid(torch.arange(20) + 0.5, torch.arange(20) + 0.5, indexing="ij")
     ref = torch.zeros(3, 20, 20, dtype=torch.float64)
     for e in range(17):

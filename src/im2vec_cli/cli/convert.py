@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import collections
+import os
 
 import click
 
@@ -13,6 +14,9 @@ from .options import Finite, load_model, model_options, nonempty, parse_segments
 from .streams import load_input_image, read_input, write_output
 
 VECTORIZE_CHUNK = 32  # images per batch (one forward pass, one refinement batch): bounded memory, written as done
+JOBS_MIN_IMAGES = 64  # --jobs auto: worker processes (their start-up, about 3 s each) pay from this many inputs
+MAX_AUTO_JOBS = 8  # --jobs auto: at most this many (each holds the model and about 0.5 GB)
+COMPILE_MIN_IMAGES = 500  # --compile auto: from this many refined inputs (bench/folder.py: 20 s cold, 22 ms per glyph saved)
 MAX_SVG_BYTES = 32 * 2**20  # `render` input: an SVG larger than this is refused while reading
 EFFORTS = ["fast", "best"]  # refine.EFFORTS, spelled out so that `--help` does not import torch
 PARTS = ["clean", "model"]  # refine.PARTS, likewise
@@ -45,13 +49,17 @@ PARTS = ["clean", "model"]  # refine.PARTS, likewise
                    "half the pixel error).")
 @click.option("--simplify", "simplify_px", type=Finite(0), default=None,
               help="Merge segments while the outline moves less than this many input pixels. [0.25 with --refine, else 0]")
-@click.option("--jobs", "-j", type=click.IntRange(1, 64), default=1, show_default=True,
-              help="Worker processes for several inputs (each loads the model; on 2 cores -j 2 refines about "
-                   "1.3x faster than one process).")
+@click.option("--jobs", "-j", type=click.IntRange(1, 64), default=None,
+              help="Worker processes for several inputs, each with its own copy of the model (on 2 cores, 2 refine "
+                   f"1.4x faster than 1). [the CPU cores, at most {MAX_AUTO_JOBS}, from {JOBS_MIN_IMAGES} inputs "
+                   "refined on the CPU; else 1]")
+@click.option("--compile/--no-compile", "compile_", default=None,
+              help="Refine through torch.compile'd kernels: about 20 s to compile per image size the first time on a "
+                   "machine (cached after), then 1.3x faster. [on from " + str(COMPILE_MIN_IMAGES) + " inputs refined]")
 @model_options
 @click.pass_context
 def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, tolerance, colors, refine, effort, simplify_px,
-              jobs, model_name, device, seed):
+              jobs, compile_, model_name, device, seed):
     """Vectorize images (PNG/JPG, any size) into SVGs of closed cubic paths.
 
     The SVG's viewBox is the input's pixel grid, so it overlays the input exactly.
@@ -68,9 +76,13 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, toleranc
         raise click.UsageError("several inputs need -o DIR")
     dests, notes = plan_outputs(items, output, ".svg", single)
     model = load_model(model_name, device, seed)
+    many = refine and len(items) > 1
     options = {"refine": refine, "effort": effort, "segments": k, "quality": quality,
                "max_paths": max_paths, "simplify_px": simplify_px, "parts": parts, "tolerance": tolerance,
-               "colors": colors}
+               "colors": colors, "compile": many and len(items) >= COMPILE_MIN_IMAGES if compile_ is None else compile_}
+    if jobs is None:
+        on_cpu = next(model.parameters()).device.type == "cpu"
+        jobs = min(os.cpu_count() or 1, MAX_AUTO_JOBS) if many and on_cpu and len(items) >= JOBS_MIN_IMAGES else 1
     api.check_segments(model, k)  # before any file is read
     for note in notes:
         warn(note)
@@ -125,9 +137,9 @@ def _in_pool(model_name, jobs, device, seed, options, write):
             for start in range(0, len(group), VECTORIZE_CHUNK):
                 good, failed = _load(group[start : start + VECTORIZE_CHUNK])
                 bad.extend(failed)
-                if good:
-                    names.append([item for item, _ in good])
-                    yield [img for _, img in good]
+                if good:  # as (H, W, 3) arrays: tensors would travel through shared memory and a file
+                    names.append([item for item, _ in good])  # descriptor server that Ctrl-C interrupts
+                    yield [img.permute(1, 2, 0).numpy() for _, img in good]
 
         for vecs in parallel.vectorize_chunks(chunks(), model_name, jobs=jobs, device=device, seed=seed, **options):
             yield from bad

@@ -148,7 +148,8 @@ def _coverage_rows(verts, sidx, n, g, size, radius, tau, fill_rule) -> torch.Ten
         ia[row, slot], ib[row, slot] = start[order], end[order]
     far = torch.full((1, 2), _FAR, dtype=verts.dtype, device=dev)
     table = torch.cat([verts.reshape(-1, 2), far])
-    a, bb = table[ia], table[ib]  # (B*G, L, 2)
+    a = table.index_select(0, ia.view(-1)).view(*ia.shape, 2)  # (B*G, L, 2); index_select's backward is an
+    bb = table.index_select(0, ib.view(-1)).view(*ib.shape, 2)  # index_add, where a[ia]'s sorts the indices
     act = edge_boundary(a, bb) if fill_rule == "nonzero" else None
     wind = winding_number(a, bb, h, w)
     cov = soft_coverage(a, bb, wind, h, w, radius=radius, tau=tau, fill_rule=fill_rule, active=act)

@@ -98,43 +98,48 @@ def _end_tangent(pts: np.ndarray, at_start: bool, reach: int) -> np.ndarray:
     return _unit(seq[1 : k + 1].mean(0) - seq[0])
 
 
-def tangent_cubic(pts: np.ndarray, u: np.ndarray, t0: np.ndarray, t1: np.ndarray) -> np.ndarray:
-    """Cubic through ``pts[0]`` and ``pts[-1]`` with end tangents ``t0``/``t1`` whose two handle
-    lengths fit ``pts (N, 2)`` at parameters ``u (N,)`` in least squares (a third of the chord
-    each when that fails or gives a loop): ``(4, 2)``.
+def fit_cubic(pts: np.ndarray, u: np.ndarray, t0: np.ndarray, t1: np.ndarray, iterations: int
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """The cubic ``(4, 2)`` from ``pts[0]`` to ``pts[-1]`` with end tangents ``t0``/``t1`` that
+    fits ``pts (N, 2)``: ``iterations`` rounds of least squares on its two handle lengths at the
+    parameters ``u (N,)`` (a third of the chord each when that fails or gives a loop), then one
+    Newton step per point towards its nearest point on the cubic (Schneider's reparametrisation).
 
-    The 2x2 normal equations are solved in closed form: this runs thousands of times per
-    picture on a few dozen points, where NumPy's per-call overhead is the cost."""
+    Returns the cubic and the last parameters. Written on x and y apart, with one Bernstein
+    basis per round shared by both halves: it runs thousands of times per picture on a few
+    dozen points, where NumPy's per-call overhead is the cost."""
+    x, y = pts[:, 0], pts[:, 1]
     p0, p3 = pts[0], pts[-1]
     chord = float(np.hypot(*(p3 - p0)))
-    v = 1 - u
-    b0, b1, b2, b3 = v * v * v, 3 * v * v * u, 3 * v * u * u, u * u * u
-    rest = pts - np.outer(b0 + b1, p0) - np.outer(b2 + b3, p3)  # (N, 2)
-    d00, d01, d11 = float(b1 @ b1) * float(t0 @ t0), float(b1 @ b2) * float(t0 @ t1), float(b2 @ b2) * float(t1 @ t1)
-    r0, r1 = float(b1 @ (rest @ t0)), float(b2 @ (rest @ t1))
-    det = d00 * d11 - d01 * d01
     lo, hi = 1e-3 * chord, 2 * chord + 1
-    a0 = a1 = chord / 3
-    if abs(det) > 1e-12 * max(d00 * d11, 1e-300):
-        x0, x1 = (r0 * d11 - d01 * r1) / det, (d00 * r1 - d01 * r0) / det
-        if lo < x0 < hi and lo < x1 < hi:
-            a0, a1 = x0, x1
-    return np.stack([p0, p0 + a0 * t0, p3 + a1 * t1, p3])
-
-
-def newton_step(ctrl: np.ndarray, pts: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """One Newton step per sample towards its nearest point on the cubic."""
-    d1 = 3 * np.diff(ctrl, axis=0)
-    d2 = 2 * np.diff(d1, axis=0)
-    t = u[:, None]
-    v = 1 - t
-    q = v * v * v * ctrl[0] + 3 * v * v * t * ctrl[1] + 3 * v * t * t * ctrl[2] + t * t * t * ctrl[3] - pts
-    q1 = v * v * d1[0] + 2 * v * t * d1[1] + t * t * d1[2]
-    q2 = v * d2[0] + t * d2[1]
-    num = np.einsum("ij,ij->i", q, q1)
-    den = np.einsum("ij,ij->i", q1, q1) + np.einsum("ij,ij->i", q, q2)
-    ok = np.abs(den) > 1e-12
-    return np.clip(u - np.where(ok, num / np.where(ok, den, 1), 0), 0, 1)
+    t00, t01, t11 = float(t0 @ t0), float(t0 @ t1), float(t1 @ t1)
+    ctrl = np.empty((4, 2))
+    for _ in range(iterations):
+        v = 1 - u
+        vv, uu, vu = v * v, u * u, v * u
+        b0, b1, b2, b3 = vv * v, 3 * vv * u, 3 * v * uu, uu * u
+        near, far = b0 + b1, b2 + b3
+        rx, ry = x - near * p0[0] - far * p3[0], y - near * p0[1] - far * p3[1]
+        d00, d01, d11 = float(b1 @ b1) * t00, float(b1 @ b2) * t01, float(b2 @ b2) * t11
+        r0, r1 = float(b1 @ (rx * t0[0] + ry * t0[1])), float(b2 @ (rx * t1[0] + ry * t1[1]))
+        det = d00 * d11 - d01 * d01
+        a0 = a1 = chord / 3
+        if abs(det) > 1e-12 * max(d00 * d11, 1e-300):
+            x0, x1 = (r0 * d11 - d01 * r1) / det, (d00 * r1 - d01 * r0) / det
+            if lo < x0 < hi and lo < x1 < hi:
+                a0, a1 = x0, x1
+        ctrl = np.stack([p0, p0 + a0 * t0, p3 + a1 * t1, p3])
+        (ax, ay), (bx, by), (cx, cy), (dx, dy) = ctrl
+        qx = b0 * ax + b1 * bx + b2 * cx + b3 * dx - x  # the cubic at u, minus the points
+        qy = b0 * ay + b1 * by + b2 * cy + b3 * dy - y
+        e0x, e1x, e2x, e0y, e1y, e2y = 3 * (bx - ax), 3 * (cx - bx), 3 * (dx - cx), 3 * (by - ay), 3 * (cy - by), 3 * (dy - cy)
+        q1x, q1y = vv * e0x + 2 * vu * e1x + uu * e2x, vv * e0y + 2 * vu * e1y + uu * e2y  # first derivative
+        q2x, q2y = 2 * (v * (e1x - e0x) + u * (e2x - e1x)), 2 * (v * (e1y - e0y) + u * (e2y - e1y))  # second
+        num = qx * q1x + qy * q1y
+        den = q1x * q1x + q1y * q1y + qx * q2x + qy * q2y
+        ok = np.abs(den) > 1e-12
+        u = np.clip(u - np.where(ok, num / np.where(ok, den, 1), 0), 0, 1)
+    return ctrl, u
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> float:
@@ -161,9 +166,7 @@ def fit_run(pts: np.ndarray, t0: np.ndarray, t1: np.ndarray, tol: float, depth: 
         return [np.stack([pts[0], pts[0] + n * t0, pts[-1] + n * t1, pts[-1]])]
     seg = np.hypot(*np.diff(pts, axis=0).T)
     u = np.concatenate([[0.0], np.cumsum(seg)]) / max(seg.sum(), 1e-12)
-    for _ in range(4):
-        ctrl = tangent_cubic(pts, u, t0, t1)
-        u = newton_step(ctrl, pts, u)
+    ctrl, u = fit_cubic(pts, u, t0, t1, 4)
     err = np.hypot(*(cubic_at(ctrl, u) - pts).T)
     if err.max() <= tol or depth > 24:
         return [ctrl]

@@ -17,7 +17,7 @@ import numpy as np
 import torch
 
 from ..raster.bezier import cubic_at, segment_controls
-from .fit import newton_step, tangent_cubic
+from .fit import fit_cubic
 from .image import VectorImage
 
 SAMPLES = 12  # points per original segment when measuring a merge
@@ -55,9 +55,7 @@ def fit_merge(first: np.ndarray, second: np.ndarray, pts: np.ndarray) -> tuple[n
         return np.stack([p0, p0, p3, p3]), np.inf
     seg = np.hypot(*np.diff(pts, axis=0).T)
     u = np.concatenate([[0.0], np.cumsum(seg)]) / max(seg.sum(), 1e-12)  # chord-length parameters
-    for _ in range(3):  # least squares on the two tangent lengths, then re-parametrise
-        ctrl = tangent_cubic(pts, u, t0, t1)
-        u = newton_step(ctrl, pts, u)
+    ctrl, u = fit_cubic(pts, u, t0, t1, 3)  # least squares on the two tangent lengths, then re-parametrise
     err = float(np.hypot(*(_bezier(ctrl, u) - pts).T).max())
     return ctrl, err
 
