@@ -4,7 +4,7 @@ DATA ?= data
 PIP ?= .venv/bin/pip
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: install test test-slow fuzz lint bench bench-vectorize bench-outlines results demo data-fonts data-mnist data-emoji data-icons clean
+.PHONY: install test test-slow fuzz lint bench bench-vectorize bench-outlines bench-folder results demo data-fonts data-mnist data-emoji data-icons clean
 
 install: .venv/.installed
 
@@ -56,6 +56,17 @@ bench-outlines: install
 	  (test -d om || (npm pack -q @iconify-json/openmoji@1.2.29 && mkdir om && tar -xzf iconify-json-openmoji-1.2.29.tgz -C om))
 	$(PY) bench/outlines.py $(OUTLINES_ARGS)
 	$(PY) docs/make_outlines_figure.py
+
+# Folders at full quality (issue "batched refinement"): 1000 held-out glyphs (GNU FreeFont, Lato) in one
+# command, batched and in worker processes, against one image at a time (this code, and the commit before
+# batching, checked out in bench/.before) and potrace: docs/FOLDERS.md. About 10 minutes on 2 cores.
+BEFORE ?= 56b5f3e
+bench-folder: install
+	command -v potrace >/dev/null || (apt-get update -q && apt-get install -y -q potrace)
+	test -f /usr/share/fonts/truetype/freefont/FreeSans.ttf -a -f /usr/share/fonts/truetype/lato/Lato-Regular.ttf || \
+	  (apt-get update -q && apt-get install -y -q fonts-freefont-ttf fonts-lato)
+	test -d bench/.before || git worktree add --detach bench/.before $(BEFORE)
+	$(PY) bench/folder.py --n 1000 --sample 100 --memory 10000 --before bench/.before --markdown docs/FOLDERS.md
 
 # The paper's tables from the shipped models (issue "Evaluation"): docs/RESULTS.md and
 # docs/results/. Needs the datasets under $(DATA) (make data-fonts data-mnist data-emoji

@@ -10,9 +10,10 @@ from fontTools, rendered at 4x, scores IoU@4x.
 Rows (wall seconds as a user runs them: process start and model load included):
 
 - ``im2vec DIR -o OUT``, the defaults for a folder this large: refined in chunks of 32, in
-  one worker process per core (``-j``), through ``torch.compile`` (``--compile``); once with
-  an empty compile cache (a fresh machine) and once with it warm (every later run);
-- ``-j 1 --no-compile``: one process, eager kernels;
+  one worker process per core (``-j``), eager kernels;
+- ``--compile``: through ``torch.compile``, once with an empty compile cache (a fresh
+  machine) and once with it warm (every later run);
+- ``-j 1``: one process;
 - one image at a time: ``refine()`` per glyph (model loaded) on an even subset of
   ``--sample`` glyphs, the per-glyph time scaled to the folder, with this code and, with
   ``--before DIR`` (a checkout of an older commit, e.g. ``git worktree add DIR 56b5f3e``), with
@@ -164,8 +165,9 @@ def main():
         start, _ = timed(EXE + [*base, str(one / "a.png"), "-o", str(Path(tmp, "a.svg")), "--no-refine"])
         cache = {"TORCHINDUCTOR_CACHE_DIR": str(Path(tmp, "inductor"))}  # empty at first: a fresh machine
         jobs = min(os.cpu_count() or 1, 8)
-        runs = {f"defaults (-j {jobs}, compile), cold cache": ([], cache), f"defaults (-j {jobs}, compile), warm cache":
-                ([], cache), "-j 1 --no-compile": (["-j", "1", "--no-compile"], None), "--no-refine": (["--no-refine"], None)}
+        runs = {f"defaults (-j {jobs})": ([], None), "--compile, cold cache": (["--compile"], cache),
+                "--compile, warm cache": (["--compile"], cache), "-j 1": (["-j", "1"], None),
+                "--no-refine": (["--no-refine"], None)}
         outs = {}
         for name, (extra, env) in runs.items():
             out = Path(tmp, f"out{len(outs)}")

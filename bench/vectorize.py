@@ -13,7 +13,7 @@ potrace on a 4x bilinear upsample, vtracer (binary mode), and the trivial baseli
 Per tool: IoU at 4x against the true outline rendered at 4x (both thresholded at 0.5), MSE at
 1x against the input, cubic segments per glyph (lines count as segments), SVG bytes, median
 ms per glyph, and the fraction of valid outputs (SVG whose every subpath is closed).
-Then the throughput on a folder of 1000 glyphs in one command: `im2vec vectorize DIR` against
+Then the throughput on a folder of 1000 glyphs in one command: `im2vec vectorize DIR --no-refine` against
 `potrace DIR/*.pgm`, both as a user runs them (process start and model load included).
 
 Run: ``make bench-vectorize`` (installs potrace, fonts-liberation and vtracer first), or
@@ -177,7 +177,8 @@ def run_tool(fn, glyphs: list[dict]) -> tuple[list, list[float]]:
 
 
 def throughput(glyphs: list[dict], n: int, model: str) -> dict:
-    """Wall seconds for ``n`` glyphs in one command each: im2vec vectorize DIR vs potrace *.pgm."""
+    """Wall seconds for ``n`` glyphs in one command each: im2vec vectorize DIR --no-refine (the model
+    alone; bench/folder.py measures the refined default) vs potrace *.pgm."""
     with tempfile.TemporaryDirectory() as tmp:
         src, pgm, out = Path(tmp, "png"), Path(tmp, "pgm"), Path(tmp, "svg")
         for d in (src, pgm, out):
@@ -186,7 +187,7 @@ def throughput(glyphs: list[dict], n: int, model: str) -> dict:
             g = glyphs[i % len(glyphs)]
             (src / f"{i:04d}.png").write_bytes(g["png"])
             (pgm / f"{i:04d}.pgm").write_bytes(_pgm(Image.open(io.BytesIO(g["png"]))))
-        exe = [sys.executable, "-m", "im2vec_cli", "vectorize", str(src), "-o", str(out), "--model", model]
+        exe = [sys.executable, "-m", "im2vec_cli", "vectorize", str(src), "-o", str(out), "--model", model, "--no-refine"]
         t = time.perf_counter()
         subprocess.run(exe, check=True, capture_output=True)
         ours = time.perf_counter() - t

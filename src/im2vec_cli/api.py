@@ -71,9 +71,8 @@ def vectorize(images, model=DEFAULT_MODEL, *, refine: bool = True, effort: str =
             (default 0.25 with ``refine``, else 0).
         compile: run the renderer's kernels through ``torch.compile`` while refining. Each new
             image size compiles afresh (about 20 s per size on 2 CPU cores the first time on a
-            machine, a few seconds from the cache after); it then refines 1.3x faster, so it
-            pays for many pictures of one size (``vectorize DIR`` turns it on from
-            ``COMPILE_MIN_IMAGES``).
+            machine, seconds from the cache after); on a CPU the eager kernels are nearly as
+            fast (bench/folder.py), on a GPU the fused kernels pay for many pictures of one size.
 
     Returns:
         One ``VectorImage`` per picture (a list for a list), in each picture's pixel frame.

@@ -46,7 +46,12 @@ def vectorize_chunks(chunks: Iterable[list], model_ref: str, *, jobs: int, devic
     if jobs < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
     threads = max(1, (os.cpu_count() or 1) // jobs)
-    pool = multiprocessing.get_context("spawn").Pool(jobs, _init, (model_ref, device, seed, threads, options))
+    if "forkserver" in multiprocessing.get_all_start_methods():  # one import of torch, forked per worker
+        ctx = multiprocessing.get_context("forkserver")
+        ctx.set_forkserver_preload(["im2vec_cli.api"])
+    else:  # Windows
+        ctx = multiprocessing.get_context("spawn")
+    pool = ctx.Pool(jobs, _init, (model_ref, device, seed, threads, options))
     done = False
     try:
         pending: collections.deque = collections.deque()

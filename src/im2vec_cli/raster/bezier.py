@@ -7,6 +7,8 @@ wrap-around order ``anchor, control, control, anchor, ...``; segment ``s`` uses 
 
 from __future__ import annotations
 
+import functools
+
 import torch
 
 
@@ -40,8 +42,14 @@ def bernstein_weights(samples: int, *, dtype: torch.dtype, device: torch.device)
     """Cubic Bernstein weights at ``t = i / samples`` for ``i = 0 .. samples-1``.
 
     Returns:
-        ``(samples, 4)`` weights; the end point ``t = 1`` is the next segment's start.
+        ``(samples, 4)`` weights (shared: do not modify); the end point ``t = 1`` is the next
+        segment's start.
     """
+    return _bernstein(samples, dtype, torch.device(device))
+
+
+@functools.lru_cache(maxsize=64)
+def _bernstein(samples: int, dtype: torch.dtype, device: torch.device) -> torch.Tensor:
     t = torch.arange(samples, dtype=dtype, device=device) / samples
     basis = torch.eye(4, dtype=dtype, device=device)[..., None].expand(4, 4, 2)  # weight k: control k alone
     return cubic_at(basis, t)[..., 0].T  # (samples, 4)

@@ -3,8 +3,8 @@ what a user's viewer shows."""
 
 from __future__ import annotations
 
-import io
 import math
+import sys
 
 import numpy as np
 
@@ -14,18 +14,22 @@ from .image import VectorImage
 def rasterize_svg(text: str | bytes, width: int, height: int) -> np.ndarray:
     """Render SVG text with cairosvg at ``width x height`` over white.
 
+    Read from cairo's own pixel buffer (premultiplied ARGB32), not through a PNG: half the
+    time at 64 px, and no unpremultiply rounding.
+
     Returns:
         ``(H, W, 3)`` float64 array in [0, 1].
     """
-    import cairosvg
-    from PIL import Image
+    from cairosvg.parser import Tree
+    from cairosvg.surface import PNGSurface
 
     data = text.encode() if isinstance(text, str) else text
-    png = cairosvg.svg2png(bytestring=data, output_width=width, output_height=height)
-    img = Image.open(io.BytesIO(png)).convert("RGBA")
-    arr = np.asarray(img, dtype=np.float64) / 255.0
-    rgb, a = arr[..., :3], arr[..., 3:]
-    return rgb * a + (1 - a)
+    surface = PNGSurface(Tree(bytestring=data), None, 96, output_width=width, output_height=height).cairo
+    surface.flush()
+    h, w = surface.get_height(), surface.get_width()
+    px = np.frombuffer(surface.get_data(), np.uint8).reshape(h, surface.get_stride() // 4, 4)[:, :w]
+    bgra = px if sys.byteorder == "little" else px[..., ::-1]  # a native-endian 32-bit ARGB word
+    return bgra[..., 2::-1] / 255.0 + (1 - bgra[..., 3:] / 255.0)  # premultiplied colour over white
 
 
 def contact_sheet(images: list[VectorImage], cell: int = 96, columns: int = 8) -> bytes:

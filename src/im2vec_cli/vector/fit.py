@@ -98,41 +98,52 @@ def _end_tangent(pts: np.ndarray, at_start: bool, reach: int) -> np.ndarray:
     return _unit(seq[1 : k + 1].mean(0) - seq[0])
 
 
-def fit_cubic(pts: np.ndarray, u: np.ndarray, t0: np.ndarray, t1: np.ndarray, iterations: int
-              ) -> tuple[np.ndarray, np.ndarray]:
-    """The cubic ``(4, 2)`` from ``pts[0]`` to ``pts[-1]`` with end tangents ``t0``/``t1`` that
-    fits ``pts (N, 2)``: ``iterations`` rounds of least squares on its two handle lengths at the
-    parameters ``u (N,)`` (a third of the chord each when that fails or gives a loop), then one
-    Newton step per point towards its nearest point on the cubic (Schneider's reparametrisation).
+def fit_cubics(pts: np.ndarray, mask: np.ndarray, u: np.ndarray, t0: np.ndarray, t1: np.ndarray, iterations: int
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """For each of K runs, the cubic from its first to its last point with end tangents
+    ``t0``/``t1`` that fits its points: ``iterations`` rounds of least squares on the two
+    handle lengths at the parameters ``u`` (a third of the chord each when that fails or gives
+    a loop), then one Newton step per point towards its nearest point on the cubic (Schneider's
+    reparametrisation).
 
-    Returns the cubic and the last parameters. Written on x and y apart, with one Bernstein
-    basis per round shared by both halves: it runs thousands of times per picture on a few
-    dozen points, where NumPy's per-call overhead is the cost."""
-    x, y = pts[:, 0], pts[:, 1]
-    p0, p3 = pts[0], pts[-1]
-    chord = float(np.hypot(*(p3 - p0)))
+    Args:
+        pts: ``(K, N, 2)`` the runs, padded after their last point; mask ``(K, N)`` true on real
+            points (at least two per run); u ``(K, N)`` their parameters; t0, t1 ``(K, 2)``.
+
+    Returns:
+        ``(K, 4, 2)`` cubics and ``(K, N)`` the last parameters. One vectorised pass serves every
+    run of a picture, where a call per run would spend its time in NumPy's per-call overhead."""
+    k = len(pts)
+    last = mask.sum(1) - 1
+    p0, p3 = pts[:, 0], pts[np.arange(k), last]  # (K, 2)
+    x, y = pts[..., 0], pts[..., 1]
+    chord = np.hypot(*(p3 - p0).T)  # (K,)
     lo, hi = 1e-3 * chord, 2 * chord + 1
-    t00, t01, t11 = float(t0 @ t0), float(t0 @ t1), float(t1 @ t1)
-    ctrl = np.empty((4, 2))
+    t00, t01, t11 = (t0 * t0).sum(1), (t0 * t1).sum(1), (t1 * t1).sum(1)
+    col = (lambda a: a[:, None])  # (K,) -> (K, 1)
+    ctrl = np.empty((k, 4, 2))
     for _ in range(iterations):
         v = 1 - u
         vv, uu, vu = v * v, u * u, v * u
         b0, b1, b2, b3 = vv * v, 3 * vv * u, 3 * v * uu, uu * u
+        m1, m2 = b1 * mask, b2 * mask  # the normal equations sum over real points only
         near, far = b0 + b1, b2 + b3
-        rx, ry = x - near * p0[0] - far * p3[0], y - near * p0[1] - far * p3[1]
-        d00, d01, d11 = float(b1 @ b1) * t00, float(b1 @ b2) * t01, float(b2 @ b2) * t11
-        r0, r1 = float(b1 @ (rx * t0[0] + ry * t0[1])), float(b2 @ (rx * t1[0] + ry * t1[1]))
+        rx, ry = x - near * col(p0[:, 0]) - far * col(p3[:, 0]), y - near * col(p0[:, 1]) - far * col(p3[:, 1])
+        d00, d01, d11 = (m1 * m1).sum(1) * t00, (m1 * m2).sum(1) * t01, (m2 * m2).sum(1) * t11
+        r0 = (m1 * (rx * col(t0[:, 0]) + ry * col(t0[:, 1]))).sum(1)
+        r1 = (m2 * (rx * col(t1[:, 0]) + ry * col(t1[:, 1]))).sum(1)
         det = d00 * d11 - d01 * d01
-        a0 = a1 = chord / 3
-        if abs(det) > 1e-12 * max(d00 * d11, 1e-300):
-            x0, x1 = (r0 * d11 - d01 * r1) / det, (d00 * r1 - d01 * r0) / det
-            if lo < x0 < hi and lo < x1 < hi:
-                a0, a1 = x0, x1
-        ctrl = np.stack([p0, p0 + a0 * t0, p3 + a1 * t1, p3])
-        (ax, ay), (bx, by), (cx, cy), (dx, dy) = ctrl
+        solvable = np.abs(det) > 1e-12 * np.maximum(d00 * d11, 1e-300)
+        safe = np.where(solvable, det, 1.0)
+        x0, x1 = (r0 * d11 - d01 * r1) / safe, (d00 * r1 - d01 * r0) / safe
+        good = solvable & (lo < x0) & (x0 < hi) & (lo < x1) & (x1 < hi)
+        a0, a1 = np.where(good, x0, chord / 3), np.where(good, x1, chord / 3)
+        ctrl = np.stack([p0, p0 + col(a0) * t0, p3 + col(a1) * t1, p3], 1)  # (K, 4, 2)
+        (ax, bx, cx, dx), (ay, by, cy, dy) = (col(c) for c in ctrl[..., 0].T), (col(c) for c in ctrl[..., 1].T)
         qx = b0 * ax + b1 * bx + b2 * cx + b3 * dx - x  # the cubic at u, minus the points
         qy = b0 * ay + b1 * by + b2 * cy + b3 * dy - y
-        e0x, e1x, e2x, e0y, e1y, e2y = 3 * (bx - ax), 3 * (cx - bx), 3 * (dx - cx), 3 * (by - ay), 3 * (cy - by), 3 * (dy - cy)
+        e0x, e1x, e2x = 3 * (bx - ax), 3 * (cx - bx), 3 * (dx - cx)
+        e0y, e1y, e2y = 3 * (by - ay), 3 * (cy - by), 3 * (dy - cy)
         q1x, q1y = vv * e0x + 2 * vu * e1x + uu * e2x, vv * e0y + 2 * vu * e1y + uu * e2y  # first derivative
         q2x, q2y = 2 * (v * (e1x - e0x) + u * (e2x - e1x)), 2 * (v * (e1y - e0y) + u * (e2y - e1y))  # second
         num = qx * q1x + qy * q1y
@@ -140,6 +151,13 @@ def fit_cubic(pts: np.ndarray, u: np.ndarray, t0: np.ndarray, t1: np.ndarray, it
         ok = np.abs(den) > 1e-12
         u = np.clip(u - np.where(ok, num / np.where(ok, den, 1), 0), 0, 1)
     return ctrl, u
+
+
+def fit_cubic(pts: np.ndarray, u: np.ndarray, t0: np.ndarray, t1: np.ndarray, iterations: int
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """``fit_cubics`` of one run ``pts (N, 2)`` at ``u (N,)``: the cubic ``(4, 2)`` and ``u``."""
+    ctrl, u = fit_cubics(pts[None], np.ones((1, len(pts)), dtype=bool), u[None], t0[None], t1[None], iterations)
+    return ctrl[0], u[0]
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> float:
@@ -154,52 +172,101 @@ def _line_error(pts: np.ndarray) -> float:
     return float(np.abs((pts[:, 0] - p0[0]) * d[1] - (pts[:, 1] - p0[1]) * d[0]).max() / n)
 
 
-def fit_run(pts: np.ndarray, t0: np.ndarray, t1: np.ndarray, tol: float, depth: int = 0) -> list[np.ndarray]:
-    """Cubics ``(4, 2)`` from ``pts[0]`` to ``pts[-1]`` leaving along ``t0`` and arriving
-    against ``t1``, every point of ``pts (N, 2)`` within ``tol`` px of them."""
-    chord = pts[-1] - pts[0]
-    straight = _line_error(pts) <= tol
-    if straight and (depth == 0 or min(abs(_cross(t0, chord)), abs(_cross(t1, chord))) <= 0.02 * np.hypot(*chord)):
-        return [np.stack([pts[0], *line_controls(pts[0], pts[-1]), pts[-1]])]  # a straight run (a split piece only if its tangents allow it)
-    if len(pts) <= 3:
-        n = np.hypot(*chord) / 3
-        return [np.stack([pts[0], pts[0] + n * t0, pts[-1] + n * t1, pts[-1]])]
-    seg = np.hypot(*np.diff(pts, axis=0).T)
-    u = np.concatenate([[0.0], np.cumsum(seg)]) / max(seg.sum(), 1e-12)
-    ctrl, u = fit_cubic(pts, u, t0, t1, 4)
-    err = np.hypot(*(cubic_at(ctrl, u) - pts).T)
-    if err.max() <= tol or depth > 24:
-        return [ctrl]
-    i = int(np.clip(np.argmax(err), 2, len(pts) - 3))
-    tc = _unit(pts[i + 2] - pts[i - 2])  # the split is a smooth join
-    return fit_run(pts[: i + 1], t0, -tc, tol, depth + 1) + fit_run(pts[i:], tc, t1, tol, depth + 1)
+MAX_DEPTH = 24  # splits of one run, at most
 
 
-def fit_ring(ring: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
-    """A closed ring ``(N, 2)`` as a closed cubic contour within ``tol`` px.
+def fit_runs(runs: list[tuple[np.ndarray, np.ndarray, np.ndarray]], tol: float) -> list[list[np.ndarray]]:
+    """Cubics ``(4, 2)`` for each run ``(pts (N, 2), t0, t1)``: from ``pts[0]`` to ``pts[-1]``,
+    leaving along ``t0`` and arriving against ``t1``, every point within ``tol`` px of them.
 
-    Returns:
-        ``(3S, 2)`` control points (same orientation as ``ring``) and ``(S,)`` bool, true where
-        anchor ``i`` is a corner (a join whose tangents may differ).
-    """
+    A run that no cubic fits is split at its worst point (a smooth join) and its halves are
+    fitted in the next round, breadth first: every piece of every run pending in a round is
+    fitted by one ``fit_cubics``. Returns each run's cubics in order along it."""
+    done: list[list[tuple[tuple, np.ndarray]]] = [[] for _ in runs]
+    pending = [(r, (), pts, t0, t1, 0) for r, (pts, t0, t1) in enumerate(runs)]
+    while pending:
+        fit = []
+        for r, key, pts, t0, t1, depth in pending:
+            chord = pts[-1] - pts[0]
+            straight = _line_error(pts) <= tol  # a straight run (a split piece only if its tangents allow it)
+            if straight and (depth == 0 or min(abs(_cross(t0, chord)), abs(_cross(t1, chord))) <= 0.02 * np.hypot(*chord)):
+                done[r].append((key, np.stack([pts[0], *line_controls(pts[0], pts[-1]), pts[-1]])))
+            elif len(pts) <= 3:
+                n = np.hypot(*chord) / 3
+                done[r].append((key, np.stack([pts[0], pts[0] + n * t0, pts[-1] + n * t1, pts[-1]])))
+            else:
+                fit.append((r, key, pts, t0, t1, depth))
+        pending = []
+        if not fit:
+            break
+        size = max(len(f[2]) for f in fit)
+        pts = np.zeros((len(fit), size, 2))
+        mask = np.zeros((len(fit), size), dtype=bool)
+        u = np.zeros((len(fit), size))
+        for j, (_, _, p, _, _, _) in enumerate(fit):
+            seg = np.hypot(*np.diff(p, axis=0).T)
+            pts[j, : len(p)], mask[j, : len(p)] = p, True
+            u[j, 1 : len(p)] = np.cumsum(seg) / max(seg.sum(), 1e-12)  # chord-length parameters
+        ctrl, u = fit_cubics(pts, mask, u, np.stack([f[3] for f in fit]), np.stack([f[4] for f in fit]), 4)
+        for j, (r, key, p, t0, t1, depth) in enumerate(fit):
+            err = np.hypot(*(cubic_at(ctrl[j], u[j, : len(p)]) - p).T)
+            if err.max() <= tol or depth > MAX_DEPTH:
+                done[r].append((key, ctrl[j]))
+                continue
+            i = int(np.clip(np.argmax(err), 2, len(p) - 3))
+            tc = _unit(p[i + 2] - p[i - 2])  # the split is a smooth join
+            pending += [(r, key + (0,), p[: i + 1], t0, -tc, depth + 1), (r, key + (1,), p[i:], tc, t1, depth + 1)]
+    return [[c for _, c in sorted(d, key=lambda kc: kc[0])] for d in done]
+
+
+def fit_run(pts: np.ndarray, t0: np.ndarray, t1: np.ndarray, tol: float) -> list[np.ndarray]:
+    """``fit_runs`` of one run."""
+    return fit_runs([(pts, t0, t1)], tol)[0]
+
+
+def _runs(ring: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, bool]]:
+    """A closed ring cut at its corners: ``(points, start tangent, end tangent, starts at a
+    corner)`` per run; a ring without corners is one run from where it turns most, round."""
     pts = resample(np.asarray(ring, dtype=np.float64))
     cs = corners(pts)
     n, reach = len(pts), max(2, round(1.5 / STEP))
-    if len(cs) == 0:  # one smooth run, starting where the ring turns most
+    if len(cs) == 0:
         start = int(np.argmax(_turn(pts, 2)))
         loop = np.roll(pts, -start, 0)
         t = _unit(loop[2] - loop[-2])
-        segs = fit_run(np.vstack([loop, loop[:1]]), t, -t, tol)
-        sharp = [False] * len(segs)
-    else:
-        pts = sharpen(pts, cs)
+        return [(np.vstack([loop, loop[:1]]), t, -t, False)]
+    pts = sharpen(pts, cs)
+    out = []
+    for a, b in zip(cs, np.roll(cs, -1)):
+        run = pts[np.arange(a, a + ((b - a) % n or n) + 1) % n]
+        out.append((run, _end_tangent(run, True, reach), _end_tangent(run, False, reach), True))
+    return out
+
+
+def fit_rings(rings: list[np.ndarray], tol: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Closed rings ``(N, 2)`` as closed cubic contours within ``tol`` px, the runs of all of
+    them fitted together (``fit_runs``).
+
+    Returns:
+        Per ring, ``(3S, 2)`` control points (same orientation as the ring) and ``(S,)`` bool,
+        true where anchor ``i`` is a corner (a join whose tangents may differ).
+    """
+    plans = [_runs(r) for r in rings]
+    pieces = iter(fit_runs([(p, t0, t1) for plan in plans for p, t0, t1, _ in plan], tol))
+    out = []
+    for plan in plans:
         segs, sharp = [], []
-        for a, b in zip(cs, np.roll(cs, -1)):
-            run = pts[np.arange(a, a + ((b - a) % n or n) + 1) % n]
-            part = fit_run(run, _end_tangent(run, True, reach), _end_tangent(run, False, reach), tol)
+        for *_, corner in plan:
+            part = next(pieces)
             segs += part
-            sharp += [True] + [False] * (len(part) - 1)
-    return np.concatenate([c[:3] for c in segs]), np.array(sharp)
+            sharp += [corner] + [False] * (len(part) - 1)
+        out.append((np.concatenate([c[:3] for c in segs]), np.array(sharp)))
+    return out
+
+
+def fit_ring(ring: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """``fit_rings`` of one ring: ``(3S, 2)`` control points and ``(S,)`` corner flags."""
+    return fit_rings([ring], tol)[0]
 
 
 def split_segments(contour: np.ndarray, sharp: np.ndarray, which: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

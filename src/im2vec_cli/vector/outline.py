@@ -13,7 +13,7 @@ Two ways in, one way out:
 
 ``untangle`` is the last step: a shape whose polished contours cross is replaced by its
 exact outline (Skia path ops). Both give a ``VectorImage`` whose shapes are nonzero, with outer contours clockwise on screen
-and holes counter-clockwise, and per contour the corner flags of ``fit.fit_ring`` (which
+and holes counter-clockwise, and per contour the corner flags of ``fit.fit_rings`` (which
 joins may stay sharp when the points are polished later). Frame: the pixel frame of the
 picture (``image.py``).
 """
@@ -24,7 +24,7 @@ import numpy as np
 
 from . import skia
 from .cairo import rasterize_svg
-from .fit import fit_ring
+from .fit import fit_rings
 from .image import VectorImage, VectorShape
 from .simplify import simplify_contour
 from .trace import background_color, level_polygons, trace, two_tone
@@ -36,8 +36,9 @@ def fitted(rings_by_shape: list[tuple[tuple, list[np.ndarray]]], width: float, h
            tol: float) -> tuple[VectorImage, Corners]:
     """``[(colour, rings)]`` back to front -> a nonzero ``VectorImage`` of cubics within ``tol`` px."""
     shapes, flags = [], []
+    every = iter(fit_rings([r for _, rings in rings_by_shape for r in rings], tol))  # all runs fitted together
     for color, rings in rings_by_shape:
-        fits = [fit_ring(r, tol) for r in rings]
+        fits = [next(every) for _ in rings]
         if fits:
             shapes.append(VectorShape([c for c, _ in fits], tuple(float(v) for v in color), "nonzero"))
             flags.append([s for _, s in fits])
