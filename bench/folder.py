@@ -48,43 +48,27 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 sys.path.insert(0, str(ROOT / "bench"))
 
-from im2vec_cli.data.fonts import _names, find_fonts, render_png  # noqa: E402
+from im2vec_cli.data.fonts import render_png  # noqa: E402
 from im2vec_cli.data.glyphs import glyph_image  # noqa: E402
 from im2vec_cli.vector import rasterize_svg, to_svg  # noqa: E402
+from outlines import CHARS, SIZE, UP, held_out_fonts  # noqa: E402
 from vectorize import _pgm  # noqa: E402
 
-SIZE, UP = 64, 4
-CHARS = "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789"
 FAMILIES = {"FreeSans", "FreeSerif", "FreeMono", "Lato"}
 EXE = [sys.executable, "-m", "im2vec_cli"]
 
 
-def glyph_set(n: int) -> list[dict]:
-    from fontTools.ttLib import TTFont
-
-    used = set((ROOT.parent / "shared" / "data" / "font-packages.txt").read_text().split())
-    rows, seen = [], set()
-    for path in find_fonts():
-        try:
-            font = TTFont(str(path), fontNumber=0, lazy=True)
-            face = _names(font)
-        except Exception:  # noqa: BLE001 - unreadable fonts are not part of the set
-            continue
-        if face[0] not in FAMILIES or face in seen:
-            continue
-        seen.add(face)
-        owner = subprocess.run(["dpkg", "-S", str(path)], capture_output=True, text=True).stdout.split(":")[0]
-        if owner in used:
-            raise SystemExit(f"{face} comes from {owner}, which the fonts training set uses")
-        rows += [{"name": f"{face[0]}-{face[1]}-{ord(c):04x}".replace(" ", "_"), "font": font, "char": c}
-                 for c in CHARS]
+def glyph_set(n: int) -> tuple[list[dict], int]:
+    faces = held_out_fonts(lambda face: face[0] in FAMILIES)
+    rows = [{"name": f"{face[0]}-{face[1]}-{ord(c):04x}".replace(" ", "_"), "font": font, "char": c}
+            for face, font in faces for c in CHARS]
     rows.sort(key=lambda r: r["name"])
     if len(rows) > n:
         rows = [rows[round(i * (len(rows) - 1) / (n - 1))] for i in range(n)]
     for r in rows:
         r["svg"] = to_svg(glyph_image(r.pop("font"), r.pop("char"), size=SIZE, margin=4.0), decimals=3)
         r["png"] = render_png(r["svg"], SIZE)
-    return rows, len(seen)
+    return rows, len(faces)
 
 
 def timed(cmd: list[str], env: dict | None = None) -> tuple[float, float]:
@@ -165,9 +149,10 @@ def main():
         start, _ = timed(EXE + [*base, str(one / "a.png"), "-o", str(Path(tmp, "a.svg")), "--no-refine"])
         cache = {"TORCHINDUCTOR_CACHE_DIR": str(Path(tmp, "inductor"))}  # empty at first: a fresh machine
         jobs = min(os.cpu_count() or 1, 8)
+        # the defaults first and again last: this machine's speed drifts by 20% over minutes
         runs = {f"defaults (-j {jobs})": ([], None), "--compile, cold cache": (["--compile"], cache),
                 "--compile, warm cache": (["--compile"], cache), "-j 1": (["-j", "1"], None),
-                "--no-refine": (["--no-refine"], None)}
+                f"defaults (-j {jobs}), again": ([], None), "--no-refine": (["--no-refine"], None)}
         outs = {}
         for name, (extra, env) in runs.items():
             out = Path(tmp, f"out{len(outs)}")

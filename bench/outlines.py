@@ -70,23 +70,33 @@ def _used_packages() -> set[str]:
     return set((ROOT.parent / "shared" / "data" / "font-packages.txt").read_text().split())
 
 
-def glyphs(limit: int | None) -> list[dict]:
+def held_out_fonts(accept) -> list[tuple[tuple[str, str], object]]:
+    """The installed fonts whose ``(family, style)`` ``accept`` takes, each face once, as
+    ``(face, TTFont)``; stops if one comes from a package the fonts training set uses."""
     from fontTools.ttLib import TTFont
 
     from im2vec_cli.data.fonts import _names
 
-    used, out = _used_packages(), []
+    used, out, seen = _used_packages(), [], set()
     for path in find_fonts():
         try:
             font = TTFont(str(path), fontNumber=0, lazy=True)
             face = _names(font)
         except Exception:  # noqa: BLE001 - unreadable fonts are not part of the set
             continue
-        if face not in FACES:
+        if not accept(face) or face in seen:
             continue
+        seen.add(face)
         owner = subprocess.run(["dpkg", "-S", str(path)], capture_output=True, text=True).stdout.split(":")[0]
         if owner in used:
             raise SystemExit(f"{face} comes from {owner}, which the fonts training set uses")
+        out.append((face, font))
+    return out
+
+
+def glyphs(limit: int | None) -> list[dict]:
+    out = []
+    for face, font in held_out_fonts(lambda face: face in FACES):
         for c in CHARS:
             svg = to_svg(glyph_image(font, c, size=SIZE, margin=4.0), decimals=3)
             out.append({"name": f"{face[0]}-{face[1]}-{ord(c):04x}", "svg": svg})
