@@ -2,9 +2,10 @@
 
 Refinement is partly Python and NumPy work on one core (tracing, curve fitting, untangling)
 and partly batched tensor work; on 2 cores, two processes of one thread each refine a folder
-of held-out glyphs about 1.4x faster than one process of two threads (bench/folder.py). Each worker loads its own copy of the model; chunks of pictures go out and vector
-images come back, in order. Nothing here prints; Ctrl-C is the parent's to handle (the
-workers ignore it and are ended with the pool).
+of held-out glyphs about 1.5x faster than one process of two threads (bench/folder.py). Each
+worker loads its own copy of the model; chunks of pictures go out and vector images come
+back, in order. Nothing here prints; Ctrl-C is the parent's to handle (the workers ignore it
+and are ended with the pool).
 """
 
 from __future__ import annotations

@@ -150,10 +150,9 @@ class _Paths:
                 counts[i, j], sidx[i, j] = len(c) // 3, gi
             colors[i, : len(v.shapes)] = torch.tensor([sh.color for sh in v.shapes], dtype=torch.float32)
         real = torch.arange(big) < 3 * counts.unsqueeze(-1)
-        rules = {sh.fill_rule for v in vecs for sh in v.shapes}
         return cls(pts.to(device), real.to(device), counts.to(device), colors.to(device),
                    torch.arange(g, dtype=torch.float32, device=device).expand(b, g), sidx.to(device),
-                   rules.pop() if len(rules) == 1 else "nonzero")
+                   _rule([sh for v in vecs for sh in v.shapes]))
 
     def take(self, rows: torch.Tensor) -> _Paths:
         """The images ``rows`` of the batch (the same padding)."""
@@ -176,9 +175,42 @@ class _Paths:
         return VectorImage(like.width, like.height, shapes)
 
 
-def _rule(vec: VectorImage) -> str:
-    rules = {sh.fill_rule for sh in vec.shapes}
+def _rule(shapes: list[VectorShape]) -> str:
+    """The fill rule to render ``shapes`` under: theirs when they agree, else nonzero."""
+    rules = {sh.fill_rule for sh in shapes}
     return rules.pop() if len(rules) == 1 else "nonzero"
+
+
+def _by_rule(vecs: list[VectorImage]) -> list[list[int]]:
+    """The non-empty images of ``vecs``, grouped by the rule they render under (one batch each)."""
+    groups: dict[str, list[int]] = {}
+    for i, v in enumerate(vecs):
+        if v.shapes:
+            groups.setdefault(_rule(v.shapes), []).append(i)
+    return [groups[r] for r in ("nonzero", "evenodd") if r in groups]
+
+
+class _Progress:
+    """Per-image loss history of a batched optimisation: each image's best loss and its early
+    stop (``_converged``). ``live`` lists the images still optimised, in batch order."""
+
+    def __init__(self, n: int, s: RefineSettings):
+        self.s, self.hist, self.best, self.live = s, [[] for _ in range(n)], [float("inf")] * n, list(range(n))
+
+    def record(self, losses: list[float]) -> tuple[list[tuple[int, int]], bool]:
+        """``losses``: one per live image. Returns ``(position in live, image)`` of the images
+        that improved on their best, and whether any stopped (then ``live`` is updated)."""
+        better, stopped = [], []
+        for a, k in enumerate(self.live):
+            self.hist[k].append(losses[a])
+            if losses[a] < self.best[k]:
+                self.best[k] = losses[a]
+                better.append((a, k))
+            if _converged(self.hist[k], self.s):
+                stopped.append(k)
+        if stopped:
+            self.live = [k for k in self.live if k not in stopped]
+        return better, bool(stopped)
 
 
 class _Fitter:
@@ -203,15 +235,13 @@ class _Fitter:
         """The loss of each image (``inf`` for an empty one), one batched render per fill rule."""
         index = list(range(len(vecs))) if index is None else index
         out = [float("inf")] * len(vecs)
-        for rule in ("nonzero", "evenodd"):
-            todo = [i for i, v in enumerate(vecs) if v.shapes and _rule(v) == rule]
-            if todo:
-                t = _Paths.of([vecs[i] for i in todo], self.target[0].device)
-                rows = torch.tensor([index[i] for i in todo], device=t.points.device)
-                with torch.no_grad():
-                    got = self.loss(t, t.points, t.colors, rows, tau).tolist()
-                for i, v in zip(todo, got):
-                    out[i] = v
+        for todo in _by_rule(vecs):
+            t = _Paths.of([vecs[i] for i in todo], self.target[0].device)
+            rows = torch.tensor([index[i] for i in todo], device=t.points.device)
+            with torch.no_grad():
+                got = self.loss(t, t.points, t.colors, rows, tau).tolist()
+            for i, v in zip(todo, got):
+                out[i] = v
         return out
 
     def fit_points(self, vecs: list[VectorImage], steps: int, tau_start: float, learn_colors: bool, stage: str,
@@ -229,13 +259,11 @@ class _Fitter:
         out, taken = list(vecs), [0] * len(vecs)
         if steps <= 0:
             return out, taken
-        for rule in ("nonzero", "evenodd"):
-            todo = [i for i, v in enumerate(vecs) if v.shapes and _rule(v) == rule]
-            if todo:
-                got, n = self._fit_batch([vecs[i] for i in todo], steps, tau_start, learn_colors, stage, on_step,
-                                         None if smooth is None else [smooth[i] for i in todo], [index[i] for i in todo])
-                for i, v, k in zip(todo, got, n):
-                    out[i], taken[i] = v, k
+        for todo in _by_rule(vecs):
+            got, n = self._fit_batch([vecs[i] for i in todo], steps, tau_start, learn_colors, stage, on_step,
+                                     None if smooth is None else [smooth[i] for i in todo], [index[i] for i in todo])
+            for i, v, k in zip(todo, got, n):
+                out[i], taken[i] = v, k
         return out, taken
 
     def _fit_batch(self, vecs, steps, tau_start, learn_colors, stage, on_step, smooth, index):
@@ -250,13 +278,10 @@ class _Fitter:
         opt = Adam(groups)
         joins = None if smooth is None else _smooth_joins(vecs, smooth, dev)
         anneal = int(0.6 * steps) if tau_start != s.tau_end else 0
-        b = len(vecs)
         rows_all = torch.tensor(index, device=dev)
-        hist: list[list[float]] = [[] for _ in range(b)]
-        best = [float("inf")] * b
+        progress = _Progress(len(vecs), s)
         best_pts, best_cols = t.effective(pts).detach().clone(), cols.detach().clone()
-        taken = [0] * b
-        live = list(range(b))
+        taken = [0] * len(vecs)
         sub, sel = t, None  # the live images' paths (all of them until one stops)
         for i in range(steps):
             tau = tau_start + (s.tau_end - tau_start) * min(1.0, i / anneal) if anneal else s.tau_end
@@ -270,24 +295,19 @@ class _Fitter:
             if joins is not None:
                 _align(pts, joins, self.size)
             if on_step:
-                on_step({"stage": stage, "step": i, "loss": float(fit.detach().mean()), "tau": tau, "images": len(live)})
-            for k in live:
+                on_step({"stage": stage, "step": i, "loss": float(fit.detach().mean()), "tau": tau,
+                         "images": len(progress.live)})
+            for k in progress.live:
                 taken[k] = i + 1
             if i < anneal:  # compare losses only at the final tau
                 continue
-            vals, stopped = loss.tolist(), []
-            for a, k in enumerate(live):
-                hist[k].append(vals[a])
-                if vals[a] < best[k]:
-                    best[k] = vals[a]
-                    best_pts[k], best_cols[k] = eff[a].detach(), c[a].detach()
-                if _converged(hist[k], s):
-                    stopped.append(k)
+            better, stopped = progress.record(loss.tolist())
+            for a, k in better:
+                best_pts[k], best_cols[k] = eff[a].detach(), c[a].detach()
             if stopped:
-                live = [k for k in live if k not in stopped]
-                if not live:
+                if not progress.live:
                     break
-                sel = torch.tensor(live, device=dev)
+                sel = torch.tensor(progress.live, device=dev)
                 sub = t.take(sel)
         return [t.to_vector(k, best_pts[k], best_cols[k], v) for k, v in enumerate(vecs)], taken
 
@@ -399,16 +419,14 @@ class Refinement:
         s = self.s
         z = mu.clone().requires_grad_(True)
         opt = Adam([{"params": [z], "lr": s.latent_lr}])
-        n = len(index)
-        hist: list[list[float]] = [[] for _ in range(n)]
-        best_z, best = z.detach().clone(), [float("inf")] * n
+        progress = _Progress(len(index), s)
+        best_z = z.detach().clone()
         rows_all = torch.tensor(index, device=z.device)
-        live = list(range(n))
         for i in range(s.latent_steps):
-            sel = torch.tensor(live, device=z.device)
+            sel = torch.tensor(progress.live, device=z.device)
             kk = k[sel] if isinstance(k, torch.Tensor) else k
             dec = self.model.decode(z[sel], kk)
-            sidx = None if dec.shape_index is None else dec.shape_index.expand(len(live), -1)
+            sidx = None if dec.shape_index is None else dec.shape_index.expand(len(sel), -1)
             renders = render_pyramid(place.model_to_input(dec.points), dec.colors, dec.depth, size=self.fitter.size,
                                      levels=s.levels, tau=s.tau_start, fill_rule=dec.fill_rule, shape_index=sidx,
                                      counts=dec.counts, samples=self.fitter.samples, composite="over")
@@ -416,19 +434,13 @@ class Refinement:
             opt.zero_grad()
             loss.sum().backward()
             opt.step()
-            vals, stopped = loss.tolist(), []
-            for a, j in enumerate(live):
-                hist[j].append(vals[a])
-                if vals[a] < best[j]:
-                    best[j], best_z[j] = vals[a], z[j].detach()
-                if _converged(hist[j], s):
-                    stopped.append(j)
+            for _, j in progress.record(loss.tolist())[0]:
+                best_z[j] = z[j].detach()
             if self.on_step:
-                self.on_step({"stage": "latent", "step": i, "loss": float(loss.detach().mean()), "images": len(live)})
-            live = [j for j in live if j not in stopped]
-            if not live:
+                self.on_step({"stage": "latent", "step": i, "loss": float(loss.detach().mean()), "images": len(sel)})
+            if not progress.live:
                 break
-        return best_z, [len(h) for h in hist]
+        return best_z, [len(h) for h in progress.hist]
 
     def decode(self, z: torch.Tensor, k, place: Placement, max_paths: int | None, index: list[int]) -> list[VectorImage]:
         """The paths of each latent in the input's frame, overlaps resolved against its input (once)."""

@@ -50,11 +50,11 @@ PARTS = ["clean", "model"]  # refine.PARTS, likewise
               help="Merge segments while the outline moves less than this many input pixels. [0.25 with --refine, else 0]")
 @click.option("--jobs", "-j", type=click.IntRange(1, 64), default=None,
               help="Worker processes for several inputs, each with its own copy of the model (on 2 cores, 2 refine "
-                   f"1.4x faster than 1). [the CPU cores, at most {MAX_AUTO_JOBS}, from {JOBS_MIN_IMAGES} inputs "
+                   f"about 1.5x faster than 1). [the CPU cores, at most {MAX_AUTO_JOBS}, from {JOBS_MIN_IMAGES} inputs "
                    "refined on the CPU; else 1]")
 @click.option("--compile/--no-compile", "compile_", default=False, show_default=True,
               help="Refine through torch.compile'd kernels: about 20 s to compile per image size the first time on a "
-                   "machine (cached after); on CPU it then gained 7% on a folder of 876 glyphs (more on a GPU).")
+                   "machine (cached after); on 2 CPU cores it did not pay on a folder of 1000 glyphs (bench/folder.py).")
 @model_options
 @click.pass_context
 def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, tolerance, colors, refine, effort, simplify_px,

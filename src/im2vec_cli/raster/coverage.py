@@ -254,7 +254,7 @@ def nearest_edge_search(
             order = torch.full((m.shape[0], kmax + 1), e, dtype=torch.long, device=dev)
             order.scatter_(1, slot_of, torch.arange(e, device=dev).expand_as(slot_of))
             if tiles.numel() * tile * tile * e <= _SMALL_SEARCH:  # one group: fewer calls beat less padding
-                groups = [(int(cap[-1]), tiles.numel())]
+                groups = [(kmax, tiles.numel())]
             else:
                 caps, runs = torch.unique_consecutive(cap, return_counts=True)
                 groups = list(zip(caps.tolist(), runs.tolist()))

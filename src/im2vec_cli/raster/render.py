@@ -89,17 +89,13 @@ def render_coverage(
     scale = torch.tensor([w, h], dtype=points.dtype, device=points.device)
     verts = flatten_closed(points * scale, samples)  # (B, P, E, 2) pixel frame
     sidx = shape_index_tensor(shape_index, p, points.device)
-    if counts is None and sidx is not None and sidx.dim() == 1:
-        sizes = torch.bincount(sidx)
-        if bool((sizes == sizes[0]).all()):  # one edge set per shape as it stands: no gather
+    each = torch.arange(p, device=points.device) if sidx is None else sidx  # no map: every path its own shape
+    if counts is None and each.dim() == 1:
+        sizes = torch.bincount(each)
+        if bool((sizes == sizes[:1]).all()):  # one edge set per shape as it stands: no gather
             active = boundary_edges(verts, sidx) if fill_rule == "nonzero" else None  # (B, P, E)
-            return _coverage_equal_shapes(verts, active, sidx, sizes.numel(), (h, w), radius, tau, fill_rule)
-    if sidx is None:
-        sidx = torch.arange(p, device=points.device)
-        if counts is None:
-            active = boundary_edges(verts, None) if fill_rule == "nonzero" else None
-            return _coverage_equal_shapes(verts, active, sidx, p, (h, w), radius, tau, fill_rule)
-    sidx = sidx.expand(b, p)
+            return _coverage_equal_shapes(verts, active, each, sizes.numel(), (h, w), radius, tau, fill_rule)
+    sidx = each.expand(b, p)
     g = int(sidx.max()) + 1 if num_shapes is None else num_shapes
     e = verts.shape[2]  # real edges per path:
     n = torch.full((b, p), e, device=points.device) if counts is None else counts.to(points.device).expand(b, p) * samples
