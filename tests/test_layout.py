@@ -23,7 +23,7 @@ LAYERS = {  # first component under im2vec_cli -> layer; higher may import lower
     "raster": 1,
     "vector": 2,
     "model": 3, "data": 3,
-    "infer": 4, "refine": 4, "train": 4, "train_aux": 4, "evaluate": 4,
+    "infer": 4, "refine": 4, "train": 4, "train_aux": 4, "train_features": 4, "evaluate": 4,
     "api": 5, "parallel": 5,
     "cli": 6, "__main__": 6,
 }

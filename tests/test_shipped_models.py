@@ -9,7 +9,9 @@ import pytest
 from im2vec_cli.evaluate import reconstruction_l2
 from im2vec_cli.model.pretrained import REPO_MODELS, from_pretrained
 
-MODELS = sorted(str(p.parent.relative_to(REPO_MODELS)) for p in REPO_MODELS.glob("**/config.json"))
+MODELS = sorted(str(p.parent.relative_to(REPO_MODELS)) for p in REPO_MODELS.glob("**/config.json")
+                if json.loads(p.read_text()).get("class_name") == "ModelConfig")  # not the feature nets (features/)
+FEATURE_NETS = sorted(str(p.parent.relative_to(REPO_MODELS)) for p in REPO_MODELS.glob("features/*/config.json"))
 ASSETS = Path(__file__).parent / "assets" / "fonts_test"
 
 
@@ -18,6 +20,15 @@ def test_shipped_model_loads(name):
     m = from_pretrained(name)
     assert (REPO_MODELS / name / "README.md").is_file(), "every shipped model needs a model card"
     assert m.config.image_size > 0
+
+
+@pytest.mark.parametrize("name", FEATURE_NETS)
+def test_shipped_feature_net_loads_with_its_card(name):
+    from im2vec_cli.model.features import FeatureNet
+
+    net = FeatureNet.load(REPO_MODELS / name)
+    assert (REPO_MODELS / name / "README.md").is_file()
+    assert net.config.test_accuracy > 0 or net.config.test_mse > 0  # its own quality was measured
 
 
 def _with_assets():

@@ -9,7 +9,7 @@ import torch::
 
 __version__ = "0.1.0"
 
-_API = ("load_model", "vectorize", "encode", "decode", "sample", "interpolate")
+_API = ("load_model", "vectorize", "encode", "decode", "sample", "prior_latents", "interpolate")
 __all__ = ["__version__", "VectorImage", "VectorShape", *_API]
 
 

@@ -129,38 +129,55 @@ def _latents(z, model) -> torch.Tensor:
     return t
 
 
-def decode(z, model=DEFAULT_MODEL, *, segments: int | None = None, keep_all: bool = False) -> list[VectorImage]:
+def _parts(parts: str | None, keep_all: bool) -> bool:
+    """Whether to draw clean outlines: ``parts`` ``"clean"`` / ``"model"``, default clean
+    unless ``keep_all`` (morphs need the model's own paths)."""
+    parts = parts or ("model" if keep_all else "clean")
+    if parts not in refinement.PARTS:
+        raise ValueError(f"parts must be one of {refinement.PARTS}, got {parts!r}")
+    return parts == "clean"
+
+
+def decode(z, model=DEFAULT_MODEL, *, segments: int | None = None, keep_all: bool = False,
+           parts: str | None = None) -> list[VectorImage]:
     """Latents ``(N, D)`` (or one ``(D,)``) -> vector images on the model's square canvas.
 
-    ``keep_all`` keeps unused paths, so that every image has the same paths (morphs)."""
+    ``parts``: ``"clean"`` (the default) draws each shape as non-overlapping outer contours and
+    holes; ``"model"`` keeps the model's overlapping paths (under even-odd for the fonts and
+    MNIST models). ``keep_all`` keeps unused paths too, so that every image has the same paths
+    (morphs; it implies ``"model"``)."""
     model = _model(model)
-    return infer.decode(model, _latents(z, model), segments=segments, keep_all=keep_all)
+    return infer.decode(model, _latents(z, model), segments=segments, keep_all=keep_all,
+                        clean=_parts(parts, keep_all))
 
 
-def prior_latents(n: int, model=DEFAULT_MODEL, *, seed: int = 0, temperature: float = 1.0) -> np.ndarray:
-    """``n`` latents drawn from N(0, temperature^2 I), seeded: ``(n, D)`` float32."""
+def prior_latents(n: int, model=DEFAULT_MODEL, *, seed: int = 0, temperature: float = 1.0,
+                  prior: str = "auto") -> np.ndarray:
+    """``n`` latents ``(n, D)`` float32, the same for the same ``seed``.
+
+    ``prior``: ``"fitted"`` draws from the density fitted to the training set's latents that
+    the model folder stores (``model.prior``), ``"normal"`` from N(0, I), ``"auto"`` the
+    first when the model has one. ``temperature`` scales the standard deviations."""
+    return infer.prior_latents(_model(model), n, seed=seed, temperature=temperature, prior=prior).numpy()
+
+
+def sample(n: int, model=DEFAULT_MODEL, *, seed: int = 0, temperature: float = 1.0, prior: str = "auto",
+           segments: int | None = None, parts: str = "clean") -> list[VectorImage]:
+    """``n`` new graphics: ``prior_latents`` decoded (``parts`` as in ``decode``)."""
     model = _model(model)
-    if n < 1:
-        raise ValueError(f"n must be >= 1, got {n}")
-    z = torch.randn(n, model.config.latent, generator=torch.Generator().manual_seed(seed)) * temperature
-    return z.numpy()
-
-
-def sample(n: int, model=DEFAULT_MODEL, *, seed: int = 0, temperature: float = 1.0,
-           segments: int | None = None) -> list[VectorImage]:
-    """``n`` new graphics: ``prior_latents`` decoded."""
-    model = _model(model)
-    return decode(prior_latents(n, model, seed=seed, temperature=temperature), model, segments=segments)
+    z = prior_latents(n, model, seed=seed, temperature=temperature, prior=prior)
+    return decode(z, model, segments=segments, parts=parts)
 
 
 def interpolate(a, b, model=DEFAULT_MODEL, *, steps: int = 4, segments: int | None = None,
-                keep_all: bool = False) -> list[VectorImage]:
+                keep_all: bool = False, parts: str | None = None) -> list[VectorImage]:
     """``steps + 2`` frames from ``a`` to ``b`` (endpoints included), each a picture or a latent
-    ``(D,)``, decoded from evenly spaced latents. ``keep_all`` as in ``decode`` (for
-    ``vector.animated_svg``)."""
+    ``(D,)``, decoded from evenly spaced latents. ``keep_all`` and ``parts`` as in ``decode``
+    (``keep_all`` for ``vector.animated_svg``)."""
     model = _model(model)
     za, zb = (_endpoint(x, model) for x in (a, b))
-    return infer.decode(model, infer.lerp_latents(za, zb, steps), segments=segments, keep_all=keep_all)
+    return infer.decode(model, infer.lerp_latents(za, zb, steps), segments=segments, keep_all=keep_all,
+                        clean=_parts(parts, keep_all))
 
 
 def _endpoint(x, model) -> torch.Tensor:

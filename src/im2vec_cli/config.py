@@ -19,7 +19,9 @@ FORMAT_VERSION = 1
 PYRAMID_MODES = ("blur", "render")  # TrainConfig.pyramid: the coarse levels of the loss (raster.render_pyramid)
 
 
-class _Config:
+class JsonConfig:
+    """A frozen dataclass stored as JSON (class name and format version beside the fields)."""
+
     @classmethod
     def from_dict(cls, data: dict[str, Any]):
         if not isinstance(data, dict):
@@ -76,7 +78,7 @@ class _Config:
 
 
 @dataclass(frozen=True)
-class ModelConfig(_Config):
+class ModelConfig(JsonConfig):
     """Architecture of the Im2Vec VAE (paper sec. 3)."""
 
     arch: str = "im2vec"  # "im2vec" (paths, sec. 3) or "imagevae" (the raster baseline of sec. 4)
@@ -118,7 +120,7 @@ class ModelConfig(_Config):
 
 
 @dataclass(frozen=True)
-class TrainConfig(_Config):
+class TrainConfig(JsonConfig):
     """Optimisation settings of ``im2vec train``."""
 
     steps: int = 5000

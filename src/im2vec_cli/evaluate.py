@@ -31,7 +31,7 @@ import torch
 from .data.folder import list_images, split_dir
 from .errors import DataError, Im2VecError, InputError
 from .files import load_image
-from .infer import decode, encode, lerp_latents, reconstruct_raster, vectorize
+from .infer import decode, encode, lerp_latents, prior_latents, reconstruct_raster, resolve_prior, vectorize
 from .model.vae import Im2Vec
 from .raster import cubic_at, segment_controls
 from .vector import VectorImage, from_svg, rasterize_svg, to_svg
@@ -147,10 +147,11 @@ def _render(image, width: int, height: int) -> torch.Tensor:
 @torch.no_grad()
 def decoded_images(model, z: torch.Tensor, segments: int | None = None, chunk: int = 256) -> torch.Tensor:
     """Latents ``(N, D)`` -> ``(N, 3, S, S)`` images at the model size: cairosvg renders of the
-    decoded SVGs, or the ImageVAE baseline's raster output."""
+    decoded SVGs as ``sample`` writes them (clean outlines), or the ImageVAE baseline's raster
+    output."""
     if not model.raster_output:
         return torch.stack([_render(v, model.config.image_size, model.config.image_size)
-                            for v in decode(model, z, segments=segments)])
+                            for v in decode(model, z, segments=segments, clean=True)])
     dev = next(model.parameters()).device
     return torch.cat([model.decode(z[i : i + chunk].to(dev)).cpu() for i in range(0, len(z), chunk)]).clamp(0, 1)
 
@@ -207,13 +208,13 @@ def nearest_mse(queries: torch.Tensor, references: torch.Tensor, chunk: int = 20
 
 
 def generation_l2(model: Im2Vec, train: torch.Tensor, *, samples: int = 1000, seed: int = 0,
-                  segments: int | None = None) -> dict[str, float]:
-    """Table 2, generation: ``samples`` latents from the prior, decoded, each scored by the MSE
-    to its nearest training image. ``train``: ``(N, 3, S, S)`` uint8 at the model size."""
-    g = torch.Generator().manual_seed(seed)
-    z = torch.randn(samples, model.config.latent, generator=g)
+                  segments: int | None = None, prior: str = "auto") -> dict[str, float]:
+    """Table 2, generation: ``samples`` latents from the prior (``api.prior_latents``), decoded,
+    each scored by the MSE to its nearest training image. ``train``: ``(N, 3, S, S)`` uint8 at
+    the model size."""
+    z = prior_latents(model, samples, seed=seed, prior=prior)
     e = nearest_mse(decoded_images(model, z, segments), train).tolist()
-    return {**mean_stderr("generation_l2", e), "generated": len(e)}
+    return {**mean_stderr("generation_l2", e), "generated": len(e), "generation_prior": resolve_prior(model, prior)}
 
 
 def interpolation_l2(model: Im2Vec, train: torch.Tensor, *, pairs: int = 250, steps: int = 4, seed: int = 0,
@@ -252,3 +253,66 @@ def sweep_plot(series: dict[str, list[dict]], title: str = "") -> bytes:
     buf = io.BytesIO()  # matplotlib writes the PNG itself (no Pillow image to hand to files.encode_png)
     fig.savefig(buf, format="png")
     return buf.getvalue()
+
+
+# --- sample quality: improved precision and recall (Kynkäänniemi et al., NeurIPS 2019) -----------
+
+PR_NEIGHBOURS = 3  # k of the k-NN balls (the paper's choice)
+CONFIDENT = 0.9  # a sample the classifier labels with at least this probability counts as recognisable
+
+
+def knn_radii(features: torch.Tensor, k: int = PR_NEIGHBOURS) -> torch.Tensor:
+    """Distance from each of ``features (N, F)`` to its k-th nearest other point: ``(N,)``."""
+    if len(features) <= k:
+        raise ValueError(f"need more than k = {k} points, got {len(features)}")
+    d = torch.cdist(features.double(), features.double())  # (N, N), 0 on the diagonal
+    return d.kthvalue(k + 1, dim=1).values  # the 0 of the point itself is the first
+
+
+def manifold_coverage(queries: torch.Tensor, support: torch.Tensor, k: int = PR_NEIGHBOURS) -> torch.Tensor:
+    """Whether each of ``queries (Q, F)`` lies in some ball around ``support (N, F)`` of radius its
+    k-th neighbour distance: ``(Q,)`` bool (the estimated manifold of the support set)."""
+    radii = knn_radii(support, k)  # (N,)
+    return (torch.cdist(queries.double(), support.double()) <= radii[None]).any(1)
+
+
+def precision_recall(real: torch.Tensor, fake: torch.Tensor, k: int = PR_NEIGHBOURS) -> dict[str, float]:
+    """Improved precision (share of ``fake (M, F)`` within the real manifold) and recall (share
+    of ``real (N, F)`` within the fake manifold), features of one network."""
+    if real.dim() != 2 or fake.dim() != 2 or real.shape[1] != fake.shape[1]:
+        raise ValueError(f"features must be (N, F) and (M, F), got {tuple(real.shape)} and {tuple(fake.shape)}")
+    return {"precision": float(manifold_coverage(fake, real, k).float().mean()),
+            "recall": float(manifold_coverage(real, fake, k).float().mean())}
+
+
+@torch.no_grad()
+def features_of(net, images: torch.Tensor, batch: int = 512) -> tuple[torch.Tensor, torch.Tensor | None]:
+    """Features ``(N, F)`` of ``images (N, 3, S, S)`` (uint8 or float in [0, 1]) and, for a
+    classifier, the class probabilities ``(N, K)``."""
+    feats, probs = [], []
+    for i in range(0, len(images), batch):
+        x = images[i : i + batch]
+        x = x.float() / 255 if x.dtype == torch.uint8 else x.float()
+        f = net(x)
+        feats.append(f)
+        if net.is_classifier:
+            probs.append(torch.softmax(net.head(f), -1))
+    return torch.cat(feats), (torch.cat(probs) if probs else None)
+
+
+def sample_quality(model, net, test: torch.Tensor, *, samples: int = 1000, seed: int = 0, prior: str = "auto",
+                   temperature: float = 1.0, segments: int | None = None) -> dict[str, float]:
+    """Precision and recall of ``samples`` decoded prior samples (rendered by cairosvg from the
+    SVGs ``sample`` writes) against the test images ``test (N, 3, S, S)`` uint8 at the model
+    size, in the feature space of ``net`` (``model.features.FeatureNet``); for a classifier also
+    the share of samples it labels with probability >= ``CONFIDENT`` (and of test images)."""
+    z = prior_latents(model, samples, seed=seed, temperature=temperature, prior=prior)
+    fake = decoded_images(model, z, segments)  # (M, 3, S, S)
+    prior = resolve_prior(model, prior)
+    real_f, real_p = features_of(net, test)
+    fake_f, fake_p = features_of(net, fake)
+    out = {**precision_recall(real_f, fake_f), "samples": samples, "test_images": len(test), "prior": prior}
+    if fake_p is not None:
+        out["confident"] = float((fake_p.max(1).values >= CONFIDENT).float().mean())
+        out["confident_test"] = float((real_p.max(1).values >= CONFIDENT).float().mean())
+    return out

@@ -9,10 +9,13 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from .errors import ModelError
 from .frame import Placement, resize_square, to_model_frame
+from .model.prior import PRIORS
 from .model.vae import Decoded, Im2Vec
 from .raster import line_controls
 from .vector import VectorImage, VectorShape, from_tensors, resolve_overlaps
+from .vector.outline import cleaned
 
 MIN_AREA = 1e-4  # paths below this area (normalised units) are unused and not exported
 
@@ -138,8 +141,13 @@ def encode(model: Im2Vec, images: list[torch.Tensor]) -> torch.Tensor:
 
 
 @torch.no_grad()
-def decode(model: Im2Vec, z: torch.Tensor, *, segments: int | None = None, keep_all: bool = False) -> list[VectorImage]:
-    """Latents ``(N, D)`` -> vector images on the model's square canvas."""
+def decode(model: Im2Vec, z: torch.Tensor, *, segments: int | None = None, keep_all: bool = False,
+           clean: bool = False) -> list[VectorImage]:
+    """Latents ``(N, D)`` -> vector images on the model's square canvas; ``clean``: each drawn
+    as non-overlapping outer contours and holes (``outline.cleaned``), not as the model's
+    overlapping paths (which ``keep_all`` keeps, for morphs)."""
+    if clean and keep_all:
+        raise ValueError("clean outlines do not keep the model's paths: keep_all needs clean=False")
     if z.dim() != 2 or z.shape[1] != model.config.latent:
         raise ValueError(f"z must be (N, {model.config.latent}), got {tuple(z.shape)}")
     if not torch.isfinite(z).all():
@@ -147,7 +155,30 @@ def decode(model: Im2Vec, z: torch.Tensor, *, segments: int | None = None, keep_
     dev = next(model.parameters()).device
     dec = model.decode(z.to(dev).float(), segments)
     s = model.config.image_size
-    return [to_vector(dec, i, Placement(s, s), keep_all=keep_all) for i in range(len(z))]
+    out = [to_vector(dec, i, Placement(s, s), keep_all=keep_all) for i in range(len(z))]
+    return [cleaned(v) for v in out] if clean else out
+
+
+def resolve_prior(model, prior: str = "auto") -> str:
+    """``"fitted"`` or ``"normal"``: the prior ``prior_latents`` draws from for ``prior``."""
+    if prior not in PRIORS:
+        raise ValueError(f"prior must be one of {PRIORS}, got {prior!r}")
+    fitted = getattr(model, "latent_prior", None) is not None
+    if prior == "fitted" and not fitted:
+        raise ModelError(f"model {getattr(model, 'name', '?')!r} has no fitted latent prior "
+                         "(add one with `im2vec fit-prior`, or use prior='normal')")
+    return "fitted" if prior != "normal" and fitted else "normal"
+
+
+def prior_latents(model, n: int, *, seed: int = 0, temperature: float = 1.0, prior: str = "auto") -> torch.Tensor:
+    """``n`` latents ``(n, D)`` float32 drawn with their own generator seeded by ``seed``: from
+    ``model.latent_prior`` (``"fitted"``, or ``"auto"`` when the model has one) or N(0, I)
+    (``"normal"``), standard deviations scaled by ``temperature``."""
+    if n < 1:
+        raise ValueError(f"n must be >= 1, got {n}")
+    if resolve_prior(model, prior) == "fitted":
+        return model.latent_prior.sample(n, seed=seed, temperature=temperature)
+    return torch.randn(n, model.config.latent, generator=torch.Generator().manual_seed(seed)) * temperature
 
 
 def lerp_latents(za: torch.Tensor, zb: torch.Tensor, steps: int) -> torch.Tensor:

@@ -36,6 +36,7 @@ from .files import atomic_write, encode_png
 from .model import build_model
 from .model.losses import reconstruction_loss
 from .model.pretrained import save_pretrained, unwrap_model
+from .model.prior import DEFAULT_COMPONENTS, IMAGES_PER_COMPONENT, LatentPrior, fit_prior, posterior_means
 from .model.vae import Im2Vec
 from .optim import Lookahead
 
@@ -323,10 +324,26 @@ def train(
     _loop(state, ddp_model, train_x, val_x, model_cfg, train_cfg, run_dir, _Log(run_dir / "metrics.jsonl", emit, main),
           rank, world)
     if main:
+        emit({"event": "prior", "images": len(train_x)})
+        prior = fit_run_prior(state.exported, train_x, str(data_dir or ""), state.step, train_cfg.seed)
+        prior.save(run_dir)  # beside checkpoint.pt, for `export`
+        state.exported.latent_prior = prior
         save_pretrained(state.exported, run_dir / "model")
     if world > 1:
         dist.barrier()
     return run_dir / "model"
+
+
+def fit_run_prior(model: torch.nn.Module, train_x: torch.Tensor, data: str, step: int, seed: int) -> LatentPrior:
+    """The ex-post latent density of a trained model (``model.prior``): a Gaussian mixture fitted
+    to the posterior means of its training images, ``DEFAULT_COMPONENTS`` of them or fewer
+    for a small set."""
+    was = model.training
+    model.eval()
+    mu = posterior_means(model, train_x)  # (N, D)
+    model.train(was)
+    k = max(1, min(DEFAULT_COMPONENTS, len(train_x) // IMAGES_PER_COMPONENT))
+    return fit_prior(mu, k, seed=seed, data=data, step=step)
 
 
 def _build(model_cfg: ModelConfig, seed: int, device: torch.device, init_state: dict | None) -> torch.nn.Module:

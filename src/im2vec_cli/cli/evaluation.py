@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from .app import EXIT_HELP, cli, warn
+from .generate import PRIORS
 from .options import load_model, model_options, nonempty, parse_segments, parse_sweep
 from .streams import write_output
 
@@ -17,8 +18,13 @@ def markdown_table(res: dict, with_train: bool) -> str:
                  ("interpolation L2 (Table 2)", "interpolation_l2", "interpolants")]
     if "outline_iou" in res:
         rows += [("outline IoU at 4x", "outline_iou", "outlines"), ("Chamfer distance (px)", "chamfer_px", "outlines")]
+    if "precision" in res:
+        rows += [("sample precision (k = 3)", "precision", "samples"), ("sample recall (k = 3)", "recall", "samples")]
     lines = [f"| metric | {res['model']} | n |", "|---|---|---|"]
-    lines += [f"| {label} | {res[key]:.4f} ± {res[key + '_stderr']:.4f} | {res[n]} |" for label, key, n in rows]
+    lines += [f"| {label} | {res[key]:.4f}" + (f" ± {res[key + '_stderr']:.4f}" if key + "_stderr" in res else "")
+              + f" | {res[n]} |" for label, key, n in rows]
+    if "confident" in res:
+        lines += [f"| samples labelled with p >= 0.9 | {res['confident']:.3f} | {res['samples']} |"]
     if "paths" in res:
         lines += [f"| paths / segments per image | {res['paths']:.2f} / {res['segments']:.1f} | {res['images']} |"]
     return "\n".join(lines) + "\n"
@@ -30,6 +36,33 @@ def _sweeps(model, files, ks) -> dict:
     out = {"segments_sweep": segments_sweep(model, files, ks)}
     if model.decoder.deform is not None:
         out["segments_sweep_deform_off"] = segments_sweep(model, files, ks, deform=False)
+    return out
+
+
+def _sample_quality(model, features_dir, data_dir, samples, seed, prior, segments) -> dict:
+    """Precision and recall of ``samples`` samples against as many test images (a seeded subset
+    of DATA's test split, apart from ``--limit``): under ``prior``, and with ``auto`` for a
+    model with a fitted prior also under N(0, I) (``sample_quality_normal``), for comparison."""
+    import torch
+
+    from ..errors import Im2VecError
+    from ..evaluate import eval_files, sample_quality
+    from ..files import load_image
+    from ..frame import fit_square
+    from ..model.features import FeatureNet
+
+    net = FeatureNet.load(features_dir)
+    cfg = model.config
+    if (net.config.image_size, net.config.fit) != (cfg.image_size, cfg.fit):
+        raise Im2VecError(f"{features_dir}: the feature net takes {net.config.image_size} px images fitted by "
+                          f"{net.config.fit!r}, the model {cfg.image_size} px by {cfg.fit!r}")
+    test = torch.stack([(fit_square(load_image(f), cfg.image_size, cfg.fit) * 255).round().to(torch.uint8)
+                        for f in eval_files(data_dir, samples, seed)])  # (N, 3, S, S) as training sees them
+    out = {**sample_quality(model, net, test, samples=samples, seed=seed, prior=prior, segments=segments),
+           "features": str(features_dir), "features_test_accuracy": net.config.test_accuracy}
+    if prior == "auto" and out["prior"] == "fitted":
+        out["sample_quality_normal"] = sample_quality(model, net, test, samples=samples, seed=seed, prior="normal",
+                                                      segments=segments)
     return out
 
 
@@ -47,9 +80,14 @@ def _sweeps(model, files, ks) -> dict:
               help="Segments ablation (paper Fig. 5): reconstruction L2 at every k in K1..K2, with the sample "
                    "deformation on and switched off at inference.")
 @click.option("--plot", default=None, callback=nonempty, help="With --sweep: write the ablation plot to this PNG (needs matplotlib).")
+@click.option("--features", "features_dir", default=None, callback=nonempty, metavar="DIR",
+              help="A feature net from `train-features` (shipped: models/features/NAME): adds the precision and "
+                   "recall of --samples prior samples against the test images in its feature space.")
+@click.option("--prior", type=click.Choice(PRIORS), default="auto", show_default=True,
+              help="Where the samples' latents come from (as `sample --prior`).")
 @model_options
-def eval_cmd(data_dir, limit, train_dir, samples, pairs, segments, output, markdown, sweep, plot, model_name, device,
-             seed):
+def eval_cmd(data_dir, limit, train_dir, samples, pairs, segments, output, markdown, sweep, plot, features_dir, prior,
+             model_name, device, seed):
     """The paper's metrics for a model, measured on the SVGs it writes (rendered by cairosvg).
 
     Reconstruction L2 (Table 1) on the test images, at each image's size; with --train-data,
@@ -57,6 +95,10 @@ def eval_cmd(data_dir, limit, train_dir, samples, pairs, segments, output, markd
     interpolants between training pairs to their nearest training image, at the model size.
     Where the test images have their true outline beside them (NAME.svg, as `im2vec data
     fonts` writes), also IoU at 4x and the Chamfer distance; always paths and segments per image.
+    With --features, sample quality: improved precision and recall (k = 3) of --samples
+    samples against as many test images, in the feature net's space, and for a classifier
+    the share of samples it labels with probability >= 0.9; for a model with a fitted prior,
+    also of samples from N(0, I), for comparison.
     An ImageVAE baseline (`train --arch imagevae`) is scored on its raster output, without
     the vector metrics.
     """
@@ -79,10 +121,12 @@ def eval_cmd(data_dir, limit, train_dir, samples, pairs, segments, output, markd
         train, _ = load_folder(split_dir(train_dir, "train"), model.config.image_size, fit=model.config.fit,
                                on_skip=lambda msg: warn(f"skipped {msg}"))
         res["train_images"] = len(train)
-        res.update(generation_l2(model, train, samples=samples, seed=seed, segments=k))
+        res.update(generation_l2(model, train, samples=samples, seed=seed, segments=k, prior=prior))
         res.update(interpolation_l2(model, train, pairs=pairs, seed=seed, segments=k))
     if ks:
         res.update(_sweeps(model, files, ks))
+    if features_dir:
+        res.update(_sample_quality(model, features_dir, data_dir, samples, seed, prior, k))
     write_output(output, json.dumps(res, indent=1) + "\n")
     if plot:
         series = {"sample deformation": res["segments_sweep"]}

@@ -7,24 +7,34 @@ import click
 from ..errors import Im2VecError
 from .app import EXIT_HELP, cli
 from .batch import refuse_overwrite
+from .convert import PARTS
 from .options import Finite, load_model, model_options, nonempty, parse_segments
 from .streams import load_input_image, make_folder, write_output
+
+PRIORS = ["auto", "fitted", "normal"]  # model.prior.PRIORS, spelled out so that `--help` does not import torch
 
 
 @cli.command(epilog=EXIT_HELP)
 @click.option("--n", "count", type=click.IntRange(1, 10000), default=16, show_default=True, help="How many samples.")
 @click.option("-o", "--output", default="samples", show_default=True, callback=nonempty, help="Output folder.")
 @click.option("--segments", default=None, help="Cubic segments per path (default: the model's).")
-@click.option("--temperature", type=Finite(0), default=1.0, show_default=True, help="Prior std scale.")
+@click.option("--temperature", type=Finite(0), default=1.0, show_default=True,
+              help="Scale of the prior's standard deviations (0: the fitted prior's component means).")
+@click.option("--prior", type=click.Choice(PRIORS), default="auto", show_default=True,
+              help="fitted: the density fitted to the training set's latents that the model stores; normal: "
+                   "N(0, I); auto: fitted when the model has one.")
+@click.option("--parts", type=click.Choice(PARTS), default="clean", show_default=True,
+              help="clean: each shape as non-overlapping outer contours and holes; model: the model's own "
+                   "(overlapping) paths.")
 @model_options
-def sample(count, output, segments, temperature, model_name, device, seed):
+def sample(count, output, segments, temperature, prior, parts, model_name, device, seed):
     """Decode N latents drawn from the prior (seeded) into SVGs, plus contact.png."""
     from .. import api
 
     model = load_model(model_name, device, seed)
     k = parse_segments(segments)
-    z = api.prior_latents(count, model, seed=seed, temperature=temperature)
-    chunks = (api.decode(z[i : i + DECODE_CHUNK], model, segments=k) for i in range(0, count, DECODE_CHUNK))
+    z = api.prior_latents(count, model, seed=seed, temperature=temperature, prior=prior)
+    chunks = (api.decode(z[i : i + DECODE_CHUNK], model, segments=k, parts=parts) for i in range(0, count, DECODE_CHUNK))
     write_set(output, "sample", (im for chunk in chunks for im in chunk), count)
 
 
@@ -85,9 +95,12 @@ def latent_from(model, item: str):
 @click.option("--steps", type=click.IntRange(0, 1000), default=4, show_default=True, help="In-between frames.")
 @click.option("-o", "--output", default="interpolation", show_default=True, callback=nonempty, help="Output folder.")
 @click.option("--segments", default=None, help="Cubic segments per path (default: the model's).")
-@click.option("--animate", is_flag=True, help="Also write morph.svg, an SMIL animation from A to B.")
+@click.option("--animate", is_flag=True, help="Also write morph.svg, an SMIL animation from A to B (of the model's "
+              "own paths, which every frame shares).")
+@click.option("--parts", type=click.Choice(PARTS), default="clean", show_default=True,
+              help="Frames: clean outer contours and holes, or the model's own paths.")
 @model_options
-def interpolate(a, b, steps, output, segments, animate, model_name, device, seed):
+def interpolate(a, b, steps, output, segments, animate, parts, model_name, device, seed):
     """Decode a linear interpolation between A and B (images, or latents from `encode`).
 
     Writes frame_*.svg (endpoints included) and contact.png to the output folder.
@@ -102,7 +115,7 @@ def interpolate(a, b, steps, output, segments, animate, model_name, device, seed
     model = load_model(model_name, device, seed)
     za, zb = latent_from(model, a), latent_from(model, b)
     k = parse_segments(segments)
-    write_set(output, "frame", api.interpolate(za, zb, model, steps=steps, segments=k), steps + 2)
+    write_set(output, "frame", api.interpolate(za, zb, model, steps=steps, segments=k, parts=parts), steps + 2)
     if animate:
         full = api.interpolate(za, zb, model, steps=steps, segments=k, keep_all=True)
         write_output(Path(output) / "morph.svg", animated_svg(full))

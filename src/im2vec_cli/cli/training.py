@@ -58,6 +58,8 @@ class _Progress:
                 click.echo(f"step {e['step']} loss {e['loss']:.5f} img/s {e['img_per_s']:.0f}", err=True)
         elif kind == "nonfinite":
             warn(f"step {e['step']}: loss or gradient not finite, update skipped ({e['in_a_row']} in a row)")
+        elif kind == "prior":
+            click.echo(f"fitting the latent prior to the {e['images']} training images' latents", err=True)
         elif kind == "val":
             click.echo(f"step {e['step']}: val pyramid L2 {e['val_pyramid_l2']:.5f}, MSE {e['val_mse']:.5f}", err=True)
 
@@ -179,3 +181,91 @@ def export(run_dir, output, half):
 
     out, step = export_checkpoint(run_dir, output, half=half)
     click.echo(f"exported step {step} to {out}", err=True)
+
+
+@cli.command("fit-prior", epilog=EXIT_HELP)
+@click.argument("data_dir", type=click.Path(file_okay=False), callback=nonempty)
+@click.option("-o", "--output", default=None, callback=nonempty,
+              help="Write the model with its prior to this folder (default: add the prior to the model's own folder).")
+@click.option("--components", type=click.IntRange(1, 1000), default=10, show_default=True,
+              help="Gaussians of the mixture (1: one full-covariance Gaussian).")
+@model_options
+def fit_prior_cmd(data_dir, output, components, model_name, device, seed):
+    """Fit the latent density `sample` draws from to a trained model's training images.
+
+    Encodes DATA_DIR's images (DATA_DIR/train when it exists) and fits a full-covariance
+    Gaussian mixture to their posterior means; writes latent_prior.safetensors and
+    latent_prior.json into the model folder. `train` does this when it finishes.
+    """
+    from pathlib import Path
+
+    from ..data.folder import load_folder, split_dir
+    from ..model.pretrained import resolve_model, save_pretrained, stored_half
+    from ..model.prior import fit_prior, posterior_means
+
+    model = load_model(model_name, device, seed, raster_ok=True)
+    folder = Path(output) if output else resolve_model(model_name)
+    data, _ = load_folder(split_dir(data_dir, "train"), model.config.image_size, fit=model.config.fit,
+                          on_skip=lambda m: warn(f"skipped {m}"))
+    if components > max(1, len(data) // 2):
+        raise click.UsageError(f"--components {components}: at most half the {len(data)} images")
+    click.echo(f"encoding {len(data)} images", err=True)
+    prior = fit_prior(posterior_means(model, data), components, seed=seed, data=str(data_dir))
+    if output:
+        model.latent_prior = prior
+        save_pretrained(model, folder, half=stored_half(model_name))  # as stored: the weights stay bit-identical
+    else:
+        prior.save(folder)
+    click.echo(f"mean log-likelihood {prior.config.log_likelihood:.1f} nats per image; "
+               f"prior written to {folder}", err=True)
+
+
+@cli.command("train-features", epilog=EXIT_HELP)
+@click.argument("data_dir", type=click.Path(file_okay=False), callback=nonempty)
+@click.option("-o", "--output", required=True, callback=nonempty, help="Folder for the feature net.")
+@click.option("--size", type=click.IntRange(32), default=64, show_default=True,
+              help="Input size: the image size of the dataset's models (a multiple of 32).")
+@click.option("--fit", type=click.Choice(["resize", "pad"]), default="resize", show_default=True,
+              help="How smaller images are fitted to --size, as the dataset's models do (MNIST: pad).")
+@click.option("--steps", type=click.IntRange(1), default=2000, show_default=True, help="Optimiser steps.")
+@click.option("--seed", type=SEED, default=0, show_default=True, help="Random seed.")
+def train_features(data_dir, output, size, fit, steps, seed):
+    """Train the feature net of `eval --features` on a dataset's training split.
+
+    A classifier when the folder layout names classes (MNIST: one folder per digit; fonts:
+    one file per character in every family folder), else an autoencoder. Its accuracy (or
+    reconstruction MSE) on DATA_DIR/test is measured and stored in its config.
+    """
+    import dataclasses
+
+    import torch
+
+    from ..data.folder import folder_labels, load_folder, split_dir
+    from ..model.features import FeatureConfig
+    from ..train_features import FeatureSettings, feature_net_score, train_feature_net
+
+    x, names = load_folder(split_dir(data_dir, "train"), size, fit=fit, on_skip=lambda m: warn(f"skipped {m}"))
+    labels = folder_labels(names)
+    classes = sorted(set(labels[0])) if labels else []
+    cfg = FeatureConfig(image_size=size, fit=fit, classes=classes, data=str(data_dir))
+    kind = f"a classifier of {len(classes)} classes (by {labels[1]} name)" if labels else "an autoencoder"
+    click.echo(f"training {kind} on {len(x)} images", err=True)
+    index = {c: i for i, c in enumerate(classes)}
+    y = torch.tensor([index[c] for c in labels[0]]) if labels else None
+    net = train_feature_net(x, y, cfg, FeatureSettings(steps=steps, seed=seed),
+                            on_step=lambda e: click.echo(f"step {e['step']}: loss {e['loss']:.4f}", err=True)
+                            if e["step"] % 500 == 0 else None)
+    tx, tnames = load_folder(split_dir(data_dir, "test"), size, fit=fit, on_skip=lambda m: warn(f"skipped {m}"))
+    if classes:
+        tlabels = folder_labels(tnames, key=labels[1])[0]
+        if any(c not in index for c in tlabels):
+            raise Im2VecError(f"{data_dir}: the test split has classes the training split has not")
+        acc = feature_net_score(net, tx, torch.tensor([index[c] for c in tlabels]))
+        net.config = dataclasses.replace(cfg, test_accuracy=acc)
+        click.echo(f"test accuracy {acc:.4f} on {len(tx)} images", err=True)
+    else:
+        mse = feature_net_score(net, tx, None)
+        net.config = dataclasses.replace(cfg, test_mse=mse)
+        click.echo(f"test reconstruction MSE {mse:.5f} on {len(tx)} images", err=True)
+    net.save(output)
+    click.echo(f"feature net written to {output}", err=True)

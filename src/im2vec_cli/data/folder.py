@@ -82,3 +82,26 @@ def split_dir(root: str | Path, split: str) -> Path:
     """``root/split`` when that folder exists (a dataset made by ``im2vec data``), else ``root``."""
     root = Path(root)
     return root / split if (root / split).is_dir() else root
+
+
+
+LABEL_KEYS = {"file": lambda n: Path(n).stem, "folder": lambda n: Path(n).parent.name}
+
+
+def folder_labels(names: list[str], key: str | None = None, max_classes: int = 1000
+                  ) -> tuple[list[str], str] | None:
+    """The class of each of a dataset's files (relative names), where its layout names one:
+    the file name when the same names recur in every folder (fonts: ``<family>/<char>.png``),
+    else the folder (MNIST: ``<digit>/<index>.png``); ``None`` when neither gives between 2 and
+    ``max_classes`` classes with ten files each on average (emoji, icons). ``key`` (``"file"`` or
+    ``"folder"``) forces the rule, e.g. the one the training split used.
+
+    Returns:
+        the class name of every file, and the key used.
+    """
+    for k in [key] if key else list(LABEL_KEYS):
+        keys = [LABEL_KEYS[k](n) for n in names]
+        n_classes = len(set(keys))
+        if key or 2 <= n_classes <= max_classes and n_classes * 10 <= len(names):
+            return keys, k
+    return None

@@ -15,6 +15,7 @@ from ..config import ModelConfig
 from ..errors import ModelError
 from ..files import atomic_write
 from . import build_model
+from .prior import LatentPrior
 
 REPO_MODELS = Path(__file__).resolve().parents[3] / "models"
 PACKAGE_MODELS = Path(__file__).resolve().parents[1] / "models"
@@ -33,7 +34,8 @@ def unwrap_model(model: torch.nn.Module) -> torch.nn.Module:
 
 
 def save_pretrained(model: torch.nn.Module, directory: str | Path, *, half: bool = False) -> Path:
-    """Write ``config.json`` and ``model.safetensors`` (fp16 storage with ``half``)."""
+    """Write ``config.json`` and ``model.safetensors`` (fp16 storage with ``half``), and the
+    model's ``latent_prior`` (``prior.LatentPrior.save``) when it has one."""
     from safetensors.torch import save
 
     model = unwrap_model(model)
@@ -43,6 +45,9 @@ def save_pretrained(model: torch.nn.Module, directory: str | Path, *, half: bool
              for k, v in model.state_dict().items()}
     atomic_write(directory / "model.safetensors", save(state, metadata={"format": "pt"}))
     atomic_write(directory / "config.json", model.config.to_json())
+    prior = getattr(model, "latent_prior", None)
+    if prior is not None:
+        prior.save(directory)
     return directory
 
 
@@ -100,6 +105,10 @@ def from_pretrained(name_or_dir: str | os.PathLike = DEFAULT_MODEL, device: str 
         first = str(exc).splitlines()[1].strip() if len(str(exc).splitlines()) > 1 else str(exc)
         raise ModelError(f"{weights}: weights do not match the config ({first})") from None
     model.name = folder.name
+    model.latent_prior = LatentPrior.load(folder)  # None when the folder stores none
+    if model.latent_prior is not None and model.latent_prior.latent != cfg.latent:
+        raise ModelError(f"{folder}: latent prior is over {model.latent_prior.latent} dimensions, "
+                         f"the model's latent has {cfg.latent}")
     return model.to(device).eval()
 
 
@@ -112,7 +121,9 @@ def stored_half(name_or_dir: str | os.PathLike) -> bool:
 
 
 def export_checkpoint(run_dir: str | Path, out_dir: str | Path, *, half: bool = False) -> tuple[Path, int]:
-    """Export the model of a run's ``checkpoint.pt`` as a ``from_pretrained`` folder.
+    """Export the model of a run's ``checkpoint.pt`` as a ``from_pretrained`` folder, with the
+    run's latent prior when it was fitted to this checkpoint's weights (a run stopped early has
+    none: ``im2vec fit-prior`` fits one).
 
     Returns the folder and the step the checkpoint was taken at.
     """
@@ -126,4 +137,7 @@ def export_checkpoint(run_dir: str | Path, out_dir: str | Path, *, half: bool = 
         model = averaged.module
     else:
         model.load_state_dict(state["model"], strict=True)
+    prior = LatentPrior.load(run_dir)  # fitted by `train` when it finished, to the weights of its last step
+    if prior is not None and prior.config.step == int(state["step"]):
+        model.latent_prior = prior
     return save_pretrained(model, out_dir, half=half), int(state["step"])

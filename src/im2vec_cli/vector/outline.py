@@ -106,6 +106,13 @@ def redrawn(vec: VectorImage, tol: float, image: np.ndarray | None = None) -> tu
     return fitted(out, vec.width, vec.height, tol)
 
 
+def cleaned(vec: VectorImage, tol: float = 0.5) -> VectorImage:
+    """A decoded image with no picture behind it (a sample, an interpolation frame) drawn
+    clean: each shape ``redrawn`` as the outer contours and holes of what it fills under its
+    own rule (so even-odd overlaps become real holes, not checkerboards) and ``untangle``-d."""
+    return untangle(redrawn(vec, tol)[0])
+
+
 # --- the last guarantee: no loops ----------------------------------------------------------------
 
 

@@ -1,0 +1,151 @@
+"""Ex-post latent density: where ``sample`` draws its latents from.
+
+A VAE trained with a small KL weight (ours: ``beta`` ~1e-6 on the sum over 128 dimensions)
+leaves its posterior codes far from N(0, I), so decoding prior draws gives shapes the
+decoder never saw. Following Ghosh et al., "From Variational to Deterministic
+Autoencoders" (ICLR 2020, ex-post density estimation), a Gaussian mixture with full
+covariances is fitted to the posterior means of the training images once the model is
+trained, and stored beside the weights:
+
+    latent_prior.safetensors   weights (K,), means (K, D), scale_tril (K, D, D) (Cholesky
+                               factors of the covariances), float32
+    latent_prior.json          LatentPriorConfig: components, latent size, how it was fitted
+
+``temperature`` scales every component's standard deviation (T = 1: the fitted density;
+T = 0: the component means), as it scales N(0, I) for ``prior="normal"``.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from ..config import JsonConfig
+from ..errors import ModelError
+from ..files import atomic_write
+
+PRIOR_WEIGHTS = "latent_prior.safetensors"
+PRIOR_CONFIG = "latent_prior.json"
+DEFAULT_COMPONENTS = 10  # chosen by precision/recall of the samples (models/*/README.md)
+IMAGES_PER_COMPONENT = 200  # a mixture fitted at the end of training has at most N / this components
+PRIORS = ("auto", "fitted", "normal")  # auto: the fitted prior when the model has one, else N(0, I)
+
+
+@dataclass(frozen=True)
+class LatentPriorConfig(JsonConfig):
+    """What a stored prior is: its size, and the data and step it was fitted on (provenance)."""
+
+    components: int = DEFAULT_COMPONENTS
+    latent: int = 128
+    covariance: str = "full"
+    images: int = 0  # training images whose posterior means were fitted
+    data: str = ""  # the folder they came from
+    seed: int = 0
+    step: int = -1  # the training step of the weights it was fitted to (-1: not from a run)
+    log_likelihood: float = 0.0  # mean per image, of the fitted latents (nats)
+
+
+class LatentPrior:
+    """A Gaussian mixture over latents ``(D,)``: ``weights (K,)``, ``means (K, D)``,
+    ``scale_tril (K, D, D)`` lower-triangular with a positive diagonal."""
+
+    def __init__(self, weights: torch.Tensor, means: torch.Tensor, scale_tril: torch.Tensor,
+                 config: LatentPriorConfig | None = None):
+        k, d = means.shape
+        if weights.shape != (k,) or scale_tril.shape != (k, d, d):
+            raise ValueError(f"prior shapes disagree: weights {tuple(weights.shape)}, means {tuple(means.shape)}, "
+                             f"scale_tril {tuple(scale_tril.shape)}")
+        self.weights = weights.double() / weights.double().sum()
+        self.means, self.scale_tril = means.float(), scale_tril.float()
+        self.config = config or LatentPriorConfig(components=k, latent=d)
+
+    @property
+    def latent(self) -> int:
+        return self.means.shape[1]
+
+    def sample(self, n: int, *, seed: int = 0, temperature: float = 1.0) -> torch.Tensor:
+        """``n`` latents ``(n, D)`` float32, the same for the same ``seed`` (its own generator)."""
+        g = torch.Generator().manual_seed(seed)
+        comp = torch.multinomial(self.weights, n, replacement=True, generator=g)  # (n,)
+        eps = torch.randn(n, self.latent, 1, generator=g)  # (n, D, 1)
+        return self.means[comp] + temperature * (self.scale_tril[comp] @ eps).squeeze(-1)  # (n, D)
+
+    def log_prob(self, z: torch.Tensor) -> torch.Tensor:
+        """Log density of latents ``(N, D)`` -> ``(N,)`` (float64)."""
+        mix = torch.distributions.MixtureSameFamily(
+            torch.distributions.Categorical(probs=self.weights),
+            torch.distributions.MultivariateNormal(self.means.double(), scale_tril=self.scale_tril.double()))
+        return mix.log_prob(z.double())
+
+    def save(self, folder: str | Path) -> Path:
+        """Write ``latent_prior.safetensors`` and ``latent_prior.json`` into ``folder`` (atomically)."""
+        from safetensors.torch import save
+
+        folder = Path(folder)
+        tensors = {"weights": self.weights.float(), "means": self.means, "scale_tril": self.scale_tril}
+        atomic_write(folder / PRIOR_WEIGHTS, save({k: v.contiguous() for k, v in tensors.items()},
+                                                  metadata={"format": "pt"}))
+        atomic_write(folder / PRIOR_CONFIG, self.config.to_json())
+        return folder / PRIOR_WEIGHTS
+
+    @classmethod
+    def load(cls, folder: str | Path) -> LatentPrior | None:
+        """The prior stored in a model folder, or ``None`` when it has none; ``ModelError``
+        when it is there but unreadable or does not fit."""
+        from safetensors import SafetensorError
+        from safetensors.torch import load_file
+
+        folder = Path(folder)
+        path = folder / PRIOR_WEIGHTS
+        if not path.is_file():
+            return None
+        try:
+            cfg = LatentPriorConfig.load(folder / PRIOR_CONFIG)
+            t = load_file(str(path))
+            prior = cls(t["weights"], t["means"], t["scale_tril"], cfg)
+        except (SafetensorError, OSError, ValueError, KeyError, json.JSONDecodeError) as exc:
+            raise ModelError(f"{path}: unreadable latent prior ({str(exc).splitlines()[0]})") from None
+        if not all(torch.isfinite(v).all() for v in (prior.weights, prior.means, prior.scale_tril)):
+            raise ModelError(f"{path}: latent prior contains NaN or infinite values")
+        if (prior.scale_tril.diagonal(dim1=1, dim2=2) <= 0).any():
+            raise ModelError(f"{path}: latent prior covariance factors are not positive definite")
+        return prior
+
+
+def fit_prior(latents: torch.Tensor, components: int = DEFAULT_COMPONENTS, *, seed: int = 0, data: str = "",
+              step: int = -1, reg: float = 1e-4) -> LatentPrior:
+    """A full-covariance Gaussian mixture fitted to latents ``(N, D)`` by EM (scikit-learn's
+    ``GaussianMixture``, k-means++ start); ``reg`` is added to every covariance's diagonal, in
+    units of the latents' mean variance, so a component on few points stays well-conditioned."""
+    from sklearn.mixture import GaussianMixture
+
+    if latents.dim() != 2:
+        raise ValueError(f"latents must be (N, D), got {tuple(latents.shape)}")
+    n, d = latents.shape
+    if not 1 <= components <= max(1, n // 2):
+        raise ValueError(f"components must be in [1, max(1, N/2)] = [1, {max(1, n // 2)}], got {components}")
+    x = latents.double().numpy()
+    scale = float(x.var(0).mean())
+    gm = GaussianMixture(components, covariance_type="full", reg_covar=reg * scale, random_state=seed,
+                         init_params="k-means++", max_iter=100, tol=1e-2)  # tol: nats per image
+    gm.fit(x)
+    cfg = LatentPriorConfig(components=components, latent=d, images=n, data=data, seed=seed, step=step,
+                            log_likelihood=float(gm.score(x)))
+    tril = np.linalg.cholesky(gm.covariances_)  # (K, D, D)
+    return LatentPrior(torch.from_numpy(gm.weights_), torch.from_numpy(gm.means_), torch.from_numpy(tril), cfg)
+
+
+@torch.no_grad()
+def posterior_means(model: torch.nn.Module, images: torch.Tensor, batch: int = 256) -> torch.Tensor:
+    """The encoder's means ``(N, D)`` of ``images (N, 3, S, S)`` (uint8, or float in [0, 1]) at the model size."""
+    dev = next(model.parameters()).device
+    out = []
+    for i in range(0, len(images), batch):
+        x = images[i : i + batch]
+        x = x.float() / 255 if x.dtype == torch.uint8 else x.float()
+        out.append(model.encode(x.to(dev))[0].float().cpu())
+    return torch.cat(out)
