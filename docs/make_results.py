@@ -20,6 +20,7 @@ import shlex
 import subprocess
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -117,6 +118,7 @@ def main():
     ap.add_argument("--samples", type=int, default=1000, help="Prior samples (generation).")
     ap.add_argument("--pairs", type=int, default=250, help="Training pairs (interpolation).")
     ap.add_argument("--only", default=None, help="Comma-separated dataset names to run (default: all).")
+    ap.add_argument("--jobs", type=int, default=1, help="Evals run at once (each is one `im2vec eval` process).")
     ap.add_argument("--reuse", action="store_true",
                     help="Keep the figures already in docs/results/ (of an interrupted run) instead of rerunning "
                          "them; their datasets need not be present.")
@@ -125,21 +127,29 @@ def main():
     only = set(args.only.split(",")) if args.only else None
     OUT.mkdir(parents=True, exist_ok=True)
 
-    results, skipped = {}, []
+    results, skipped, todo = {}, [], []
     for label, model, ds in MODELS:
         if only and ds not in only:
             continue
         name = label.replace(" ", "-")
         extra = ["--train-data", str(data / ds), "--samples", str(args.samples), "--pairs", str(args.pairs)]
-        if (ROOT / "models" / "features" / ds / "config.json").is_file():  # sample quality (precision, recall)
-            extra += ["--features", f"models/features/{ds}"]
         cmd = ["--model", model, "--data", str(data / ds), "--limit", str(args.limit), *extra]
         earlier = _earlier(name, cmd) if args.reuse else None
         if not (ROOT / model / "config.json").is_file() or not ((data / ds).is_dir() or earlier):
             skipped.append(f"{label} ({model} or {data / ds} missing)")
             continue
-        results[label] = run_eval(name, cmd, earlier)
-        results[label]["model_dir"] = model
+        todo.append((results, label, model, name, cmd, earlier))
+
+    samples = {}  # sample quality: its own eval (the reconstruction figure of its few --limit images is not used)
+    for label, model, ds in MODELS:
+        if (only and ds not in only) or not (ROOT / "models" / "features" / ds / "config.json").is_file():
+            continue
+        name = "samples-" + label.replace(" ", "-")
+        cmd = ["--model", model, "--data", str(data / ds), "--limit", "20", "--features", f"models/features/{ds}",
+               "--samples", str(args.samples)]
+        earlier = _earlier(name, cmd) if args.reuse else None
+        if (ROOT / model / "config.json").is_file() and ((data / ds).is_dir() or earlier):
+            todo.append((samples, label, model, name, cmd, earlier))
 
     sweeps = {}
     for label, model, ds in SWEEPS:
@@ -152,8 +162,11 @@ def main():
         if not (ROOT / model / "config.json").is_file() or not ((data / ds).is_dir() or earlier):
             skipped.append(f"ablation: {label} ({model} or {data / ds} missing)")
             continue
-        sweeps[label] = run_eval(name, cmd, earlier)
-        sweeps[label]["model_dir"] = model
+        todo.append((sweeps, label, model, name, cmd, earlier))
+    with ThreadPoolExecutor(max(1, args.jobs)) as pool:  # threads: each eval is its own process
+        done = list(pool.map(lambda t: run_eval(*t[3:]), todo))
+    for (table, label, model, *_), res in zip(todo, done):
+        table[label] = {**res, "model_dir": model}
     if any(label.startswith("mnist") for label in sweeps):
         from im2vec_cli.evaluate import sweep_plot
 
@@ -161,12 +174,13 @@ def main():
                   if label.startswith("mnist")}
         (OUT / "sweep-mnist.png").write_bytes(sweep_plot(series, "MNIST: deformation in training vs not"))
 
-    evals_s = sum(r["wall_s"] for r in [*results.values(), *sweeps.values()])
-    reused = sum(bool(r.get("reused")) for r in [*results.values(), *sweeps.values()])
-    write_markdown(results, sweeps, skipped, args, evals_s, reused)
+    every = [*results.values(), *samples.values(), *sweeps.values()]
+    evals_s = sum(r["wall_s"] for r in every)
+    reused = sum(bool(r.get("reused")) for r in every)
+    write_markdown(results, sweeps, skipped, args, evals_s, reused, samples)
 
 
-def write_markdown(results, sweeps, skipped, args, total_s, reused: int = 0):
+def write_markdown(results, sweeps, skipped, args, total_s, reused: int = 0, samples=None):
     now = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     L = [
         "# Results: the paper's tables, reproduced",
@@ -181,8 +195,8 @@ def write_markdown(results, sweeps, skipped, args, total_s, reused: int = 0):
         "the test fonts families, the MNIST test digits and the emoji/icon test files were never trained on.",
         "Definitions: `src/im2vec_cli/evaluate.py`.",
     ]
-    L += _table1(results) + _table2(results, args) + _samples(results) + _outlines(results) + (_sweeps(sweeps, args) if sweeps else [])
-    L += _provenance(results, sweeps, skipped)
+    L += _table1(results) + _table2(results, args) + _samples(samples or {}) + _outlines(results) + (_sweeps(sweeps, args) if sweeps else [])
+    L += _provenance({**results, **{"sample quality: " + k: v for k, v in (samples or {}).items()}}, sweeps, skipped)
     (ROOT / "docs" / "RESULTS.md").write_text("\n".join(L) + "\n")
     print(f"wrote {ROOT / 'docs' / 'RESULTS.md'}", file=sys.stderr)
 
@@ -209,8 +223,9 @@ def _table2(results, args) -> list[str]:
         "",
         "## Table 2: generation and interpolation",
         "",
-        f"Generation: {args.samples} latents from the prior (the model's fitted latent prior where it has",
-        f"one, else N(0, I): the *prior* column), decoded as `sample` writes them; interpolation: {args.pairs} random",
+        f"Generation: {args.samples} latents from the prior (the *prior* column: the model's fitted latent prior",
+        "where it has one, else N(0, I); rows of N(0, I) kept from a run before the fitted prior were decoded as",
+        f"the model's even-odd paths), decoded; interpolation: {args.pairs} random",
         "training pairs, 4 evenly spaced interpolants each. Each image is scored by the MSE to its",
         "nearest training image at the model size (lower: closer to the data; a model that copies",
         "its training set scores 0, so this says little of quality: see *Sample quality* below).",

@@ -300,6 +300,13 @@ def features_of(net, images: torch.Tensor, batch: int = 512) -> tuple[torch.Tens
     return torch.cat(feats), (torch.cat(probs) if probs else None)
 
 
+def confident_share(probs: torch.Tensor) -> float:
+    """Share of images whose most likely class has probability >= ``CONFIDENT`` and is one of
+    the data's (not a classifier's last, junk class): ``probs (N, K)``."""
+    p, cls = probs.max(1)
+    return float(((p >= CONFIDENT) & (cls < probs.shape[1] - 1)).float().mean())
+
+
 def sample_quality(model, net, test: torch.Tensor, *, samples: int = 1000, seed: int = 0, prior: str = "auto",
                    temperature: float = 1.0, segments: int | None = None) -> dict[str, float]:
     """Precision and recall of ``samples`` decoded prior samples (rendered by cairosvg from the
@@ -313,6 +320,6 @@ def sample_quality(model, net, test: torch.Tensor, *, samples: int = 1000, seed:
     fake_f, fake_p = features_of(net, fake)
     out = {**precision_recall(real_f, fake_f), "samples": samples, "test_images": len(test), "prior": prior}
     if fake_p is not None:
-        out["confident"] = float((fake_p.max(1).values >= CONFIDENT).float().mean())
-        out["confident_test"] = float((real_p.max(1).values >= CONFIDENT).float().mean())
+        out["confident"] = confident_share(fake_p)
+        out["confident_test"] = confident_share(real_p)
     return out

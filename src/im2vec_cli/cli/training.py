@@ -233,7 +233,8 @@ def train_features(data_dir, output, size, fit, steps, seed):
     """Train the feature net of `eval --features` on a dataset's training split.
 
     A classifier when the folder layout names classes (MNIST: one folder per digit; fonts:
-    one file per character in every family folder), else an autoencoder. Its accuracy (or
+    one file per character in every family folder), with one more class for blank, noise and
+    pattern images (outlier exposure), else an autoencoder. Its accuracy (or
     reconstruction MSE) on DATA_DIR/test is measured and stored in its config.
     """
     import dataclasses
@@ -242,13 +243,13 @@ def train_features(data_dir, output, size, fit, steps, seed):
 
     from ..data.folder import folder_labels, load_folder, split_dir
     from ..model.features import FeatureConfig
-    from ..train_features import FeatureSettings, feature_net_score, train_feature_net
+    from ..train_features import JUNK, FeatureSettings, feature_net_score, train_feature_net
 
     x, names = load_folder(split_dir(data_dir, "train"), size, fit=fit, on_skip=lambda m: warn(f"skipped {m}"))
     labels = folder_labels(names)
-    classes = sorted(set(labels[0])) if labels else []
+    classes = sorted(set(labels[0])) + [JUNK] if labels else []  # JUNK: outlier exposure (train_features.py)
     cfg = FeatureConfig(image_size=size, fit=fit, classes=classes, data=str(data_dir))
-    kind = f"a classifier of {len(classes)} classes (by {labels[1]} name)" if labels else "an autoencoder"
+    kind = f"a classifier of {len(classes) - 1} classes (by {labels[1]} name)" if labels else "an autoencoder"
     click.echo(f"training {kind} on {len(x)} images", err=True)
     index = {c: i for i, c in enumerate(classes)}
     y = torch.tensor([index[c] for c in labels[0]]) if labels else None

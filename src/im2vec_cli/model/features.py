@@ -29,7 +29,7 @@ WORK_SIZE = 32  # every input is average-pooled to this size first
 @dataclass(frozen=True)
 class FeatureConfig(JsonConfig):
     """``image_size`` and ``fit``: the frame the inputs come in (the dataset's model's);
-    ``classes``: the label names (empty: an autoencoder)."""
+    ``classes``: the label names, the last one ``train_features.JUNK`` (empty: an autoencoder)."""
 
     image_size: int = 64
     fit: str = "resize"
