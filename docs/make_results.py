@@ -123,7 +123,7 @@ def main():
                     help="Keep the figures already in docs/results/ (of an interrupted run) instead of rerunning "
                          "them; their datasets need not be present.")
     args = ap.parse_args()
-    data = Path(args.data).resolve()
+    data = Path(args.data).absolute()  # not resolved: a symlinked data folder keeps its name in the commands
     only = set(args.only.split(",")) if args.only else None
     OUT.mkdir(parents=True, exist_ok=True)
 
@@ -253,8 +253,9 @@ def _samples(results) -> list[str]:
         "Kynkäänniemi et al. (NeurIPS 2019), k = 3: precision is the share of samples that fall in the",
         "k-NN balls of the test images, recall the share of test images in the balls of the samples,",
         "in the 128-d feature space of a small network trained in the project on the dataset's",
-        "training split (`models/features/NAME`: a classifier for fonts (62 characters) and MNIST",
-        "(10 digits), with its test accuracy; an autoencoder for emoji and icons). 1,000 samples against",
+        "training split (`models/features/NAME`: a classifier of the 62 characters for fonts and of the 10",
+        "digits for MNIST, each with one more class for blank, noise and pattern images; emoji and icons",
+        "have no labels and no feature net yet, so no rows). 1,000 samples against",
         "1,000 test images (all the test split where smaller); *p ≥ 0.9*: the share of samples the",
         "classifier labels with probability at least 0.9 (of test images: last column). Samples are",
         "rendered by cairosvg from the SVGs `sample` writes; the ImageVAE's are its raster output.",

@@ -308,13 +308,15 @@ def confident_share(probs: torch.Tensor) -> float:
 
 
 def sample_quality(model, net, test: torch.Tensor, *, samples: int = 1000, seed: int = 0, prior: str = "auto",
-                   temperature: float = 1.0, segments: int | None = None) -> dict[str, float]:
+                   temperature: float = 1.0, segments: int | None = None, to_net=None) -> dict[str, float]:
     """Precision and recall of ``samples`` decoded prior samples (rendered by cairosvg from the
     SVGs ``sample`` writes) against the test images ``test (N, 3, S, S)`` uint8 at the model
     size, in the feature space of ``net`` (``model.features.FeatureNet``); for a classifier also
     the share of samples it labels with probability >= ``CONFIDENT`` (and of test images)."""
     z = prior_latents(model, samples, seed=seed, temperature=temperature, prior=prior)
     fake = decoded_images(model, z, segments)  # (M, 3, S, S)
+    if to_net is not None:  # the model's frame -> the feature net's (e.g. an MNIST model that resizes, a net that pads)
+        fake = torch.stack([to_net(x) for x in fake])
     prior = resolve_prior(model, prior)
     real_f, real_p = features_of(net, test)
     fake_f, fake_p = features_of(net, fake)

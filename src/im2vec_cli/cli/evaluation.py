@@ -48,21 +48,26 @@ def _sample_quality(model, features_dir, data_dir, samples, seed, prior, segment
     from ..errors import Im2VecError
     from ..evaluate import eval_files, sample_quality
     from ..files import load_image
-    from ..frame import fit_square
+    from ..frame import fit_square, resize_square
     from ..model.features import FeatureNet
 
     net = FeatureNet.load(features_dir)
-    cfg = model.config
-    if (net.config.image_size, net.config.fit) != (cfg.image_size, cfg.fit):
-        raise Im2VecError(f"{features_dir}: the feature net takes {net.config.image_size} px images fitted by "
-                          f"{net.config.fit!r}, the model {cfg.image_size} px by {cfg.fit!r}")
-    test = torch.stack([(fit_square(load_image(f), cfg.image_size, cfg.fit) * 255).round().to(torch.uint8)
-                        for f in eval_files(data_dir, samples, seed)])  # (N, 3, S, S) as training sees them
-    out = {**sample_quality(model, net, test, samples=samples, seed=seed, prior=prior, segments=segments),
+    cfg, size = model.config, net.config.image_size
+    if size != cfg.image_size:
+        raise Im2VecError(f"{features_dir}: the feature net takes {size} px images, the model draws {cfg.image_size} px")
+    pictures = [load_image(f) for f in eval_files(data_dir, samples, seed)]
+    test = torch.stack([(fit_square(p, size, net.config.fit) * 255).round().to(torch.uint8)
+                        for p in pictures])  # (N, 3, S, S) in the net's frame
+    to_net = None
+    if net.config.fit != cfg.fit:  # a sample, in the model's frame, to the picture's size, then to the net's frame
+        h, w = pictures[0].shape[1:]
+        to_net = lambda x: fit_square(resize_square(x, max(h, w))[:, :h, :w], size, net.config.fit)  # noqa: E731
+    out = {**sample_quality(model, net, test, samples=samples, seed=seed, prior=prior, segments=segments,
+                            to_net=to_net),
            "features": str(features_dir), "features_test_accuracy": net.config.test_accuracy}
     if prior == "auto" and out["prior"] == "fitted":
         out["sample_quality_normal"] = sample_quality(model, net, test, samples=samples, seed=seed, prior="normal",
-                                                      segments=segments)
+                                                      segments=segments, to_net=to_net)
     return out
 
 
