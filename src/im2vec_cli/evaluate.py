@@ -31,6 +31,7 @@ import torch
 from .data.folder import list_images, split_dir
 from .errors import DataError, Im2VecError, InputError
 from .files import load_image
+from .frame import fit_square, resize_square
 from .infer import decode, encode, lerp_latents, prior_latents, reconstruct_raster, resolve_prior, vectorize
 from .model.vae import Im2Vec
 from .raster import cubic_at, segment_controls
@@ -209,7 +210,7 @@ def nearest_mse(queries: torch.Tensor, references: torch.Tensor, chunk: int = 20
 
 def generation_l2(model: Im2Vec, train: torch.Tensor, *, samples: int = 1000, seed: int = 0,
                   segments: int | None = None, prior: str = "auto") -> dict[str, float]:
-    """Table 2, generation: ``samples`` latents from the prior (``api.prior_latents``), decoded,
+    """Table 2, generation: ``samples`` latents from the prior (``infer.prior_latents``), decoded,
     each scored by the MSE to its nearest training image. ``train``: ``(N, 3, S, S)`` uint8 at
     the model size."""
     z = prior_latents(model, samples, seed=seed, prior=prior)
@@ -307,21 +308,37 @@ def confident_share(probs: torch.Tensor) -> float:
     return float(((p >= CONFIDENT) & (cls < probs.shape[1] - 1)).float().mean())
 
 
-def sample_quality(model, net, test: torch.Tensor, *, samples: int = 1000, seed: int = 0, prior: str = "auto",
-                   temperature: float = 1.0, segments: int | None = None, to_net=None) -> dict[str, float]:
+def sample_quality(model, net, pictures: list[torch.Tensor], *, samples: int = 1000, seed: int = 0,
+                   prior: str = "auto", temperature: float = 1.0, segments: int | None = None) -> dict:
     """Precision and recall of ``samples`` decoded prior samples (rendered by cairosvg from the
-    SVGs ``sample`` writes) against the test images ``test (N, 3, S, S)`` uint8 at the model
-    size, in the feature space of ``net`` (``model.features.FeatureNet``); for a classifier also
-    the share of samples it labels with probability >= ``CONFIDENT`` (and of test images)."""
-    z = prior_latents(model, samples, seed=seed, temperature=temperature, prior=prior)
-    fake = decoded_images(model, z, segments)  # (M, 3, S, S)
-    if to_net is not None:  # the model's frame -> the feature net's (e.g. an MNIST model that resizes, a net that pads)
-        fake = torch.stack([to_net(x) for x in fake])
-    prior = resolve_prior(model, prior)
-    real_f, real_p = features_of(net, test)
-    fake_f, fake_p = features_of(net, fake)
-    out = {**precision_recall(real_f, fake_f), "samples": samples, "test_images": len(test), "prior": prior}
-    if fake_p is not None:
-        out["confident"] = confident_share(fake_p)
-        out["confident_test"] = confident_share(real_p)
+    SVGs ``sample`` writes) against test ``pictures`` (``(3, H, W)`` each, of one size), in the
+    feature space of ``net`` (``model.features.FeatureNet``); for a classifier also the share of
+    samples it labels with probability >= ``CONFIDENT`` (and of the pictures). Both are brought
+    into the net's frame: the pictures fitted its way, the samples (in the model's frame) first
+    mapped back to the pictures' size when the model fits pictures another way (an MNIST model
+    that resizes, a net that pads). With ``prior="auto"`` and a fitted prior, the same for
+    N(0, I) under ``sample_quality_normal``, for comparison."""
+    size, fit = net.config.image_size, net.config.fit
+    if size != model.config.image_size:
+        raise Im2VecError(f"the feature net takes {size} px images, the model draws {model.config.image_size} px")
+    test = torch.stack([fit_square(p, size, fit) for p in pictures])  # (N, 3, S, S) in the net's frame
+    h, w = pictures[0].shape[1:]
+    real_f, real_p = features_of(net, (test * 255).round().to(torch.uint8))
+
+    def scores(which: str) -> dict:
+        z = prior_latents(model, samples, seed=seed, temperature=temperature, prior=which)
+        fake = decoded_images(model, z, segments)  # (M, 3, S, S) in the model's frame
+        if fit != model.config.fit:
+            fake = torch.stack([fit_square(resize_square(x, max(h, w))[:, :h, :w], size, fit) for x in fake])
+        fake_f, fake_p = features_of(net, fake)
+        out = {**precision_recall(real_f, fake_f), "samples": samples, "test_images": len(test),
+               "prior": resolve_prior(model, which)}
+        if fake_p is not None:
+            out["confident"] = confident_share(fake_p)
+            out["confident_test"] = confident_share(real_p)
+        return out
+
+    out = scores(prior)
+    if prior == "auto" and out["prior"] == "fitted":
+        out["sample_quality_normal"] = scores("normal")
     return out

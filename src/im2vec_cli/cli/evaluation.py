@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import click
 
+from ..errors import Im2VecError
 from .app import EXIT_HELP, cli, warn
 from .generate import PRIORS
 from .options import load_model, model_options, nonempty, parse_segments, parse_sweep
@@ -40,35 +41,19 @@ def _sweeps(model, files, ks) -> dict:
 
 
 def _sample_quality(model, features_dir, data_dir, samples, seed, prior, segments) -> dict:
-    """Precision and recall of ``samples`` samples against as many test images (a seeded subset
-    of DATA's test split, apart from ``--limit``): under ``prior``, and with ``auto`` for a
-    model with a fitted prior also under N(0, I) (``sample_quality_normal``), for comparison."""
-    import torch
-
-    from ..errors import Im2VecError
+    """``evaluate.sample_quality`` against a seeded subset of as many test images as samples
+    (apart from ``--limit``), with the feature net's provenance."""
     from ..evaluate import eval_files, sample_quality
     from ..files import load_image
-    from ..frame import fit_square, resize_square
     from ..model.features import FeatureNet
 
     net = FeatureNet.load(features_dir)
-    cfg, size = model.config, net.config.image_size
-    if size != cfg.image_size:
-        raise Im2VecError(f"{features_dir}: the feature net takes {size} px images, the model draws {cfg.image_size} px")
     pictures = [load_image(f) for f in eval_files(data_dir, samples, seed)]
-    test = torch.stack([(fit_square(p, size, net.config.fit) * 255).round().to(torch.uint8)
-                        for p in pictures])  # (N, 3, S, S) in the net's frame
-    to_net = None
-    if net.config.fit != cfg.fit:  # a sample, in the model's frame, to the picture's size, then to the net's frame
-        h, w = pictures[0].shape[1:]
-        to_net = lambda x: fit_square(resize_square(x, max(h, w))[:, :h, :w], size, net.config.fit)  # noqa: E731
-    out = {**sample_quality(model, net, test, samples=samples, seed=seed, prior=prior, segments=segments,
-                            to_net=to_net),
-           "features": str(features_dir), "features_test_accuracy": net.config.test_accuracy}
-    if prior == "auto" and out["prior"] == "fitted":
-        out["sample_quality_normal"] = sample_quality(model, net, test, samples=samples, seed=seed, prior="normal",
-                                                      segments=segments, to_net=to_net)
-    return out
+    try:
+        out = sample_quality(model, net, pictures, samples=samples, seed=seed, prior=prior, segments=segments)
+    except Im2VecError as exc:
+        raise Im2VecError(f"{features_dir}: {exc}") from None
+    return {**out, "features": str(features_dir), "features_test_accuracy": net.config.test_accuracy}
 
 
 @cli.command("eval", epilog=EXIT_HELP)
