@@ -186,8 +186,14 @@ def test_cli_train_init_fine_tunes_from_a_model(tmp_path, shapes):
     for (name, p0), p1 in zip(start.state_dict().items(), tuned.state_dict().values()):
         assert torch.allclose(p0.float(), p1.float(), atol=1e-3), name
     res = CliRunner().invoke(cli, [*base, "--out", str(tmp_path / "c"), "--init", str(tmp_path / "a" / "model"),
-                                   "--paths", "3"])
-    assert res.exit_code == 2 and "--init takes the model options" in res.output
+                                   "--latent", "32"])
+    assert res.exit_code == 2 and "--init takes the model options" in res.output and "latent" in res.output
+    # more paths and another grouping: the model grows (model.pretrained.grow_state) and trains
+    res = CliRunner().invoke(cli, [*base, "--out", str(tmp_path / "d"), "--init", str(tmp_path / "a" / "model"),
+                                   "--paths", "3", "--grouping", "nonzero"])
+    assert res.exit_code == 0, res.output
+    grown = from_pretrained(tmp_path / "d" / "model")
+    assert grown.config == dataclasses.replace(start.config, paths=3, grouping="nonzero")
 
 
 def test_ddp_two_cpu_processes(tmp_path, shapes):

@@ -16,6 +16,11 @@ from .errors import ConfigError, Im2VecError
 from .frame import FITS
 
 FORMAT_VERSION = 1
+# ModelConfig.grouping: how the P paths make shapes. "evenodd": one shape under the even-odd rule (every
+# overlap of two paths is a hole); "nonzero": one shape under the nonzero rule (overlaps stay filled, a
+# path wound the other way inside another cuts a hole, as in font outlines); "layers": one coloured shape
+# per path, composited by depth.
+GROUPINGS = ("evenodd", "nonzero", "layers")
 PYRAMID_MODES = ("blur", "render")  # TrainConfig.pyramid: the coarse levels of the loss (raster.render_pyramid)
 
 
@@ -94,7 +99,7 @@ class ModelConfig(JsonConfig):
     dec_layers: int = 4  # path decoder conv layers (authors: 6)
     deform: bool = True  # sample deformation subnetwork (sec. 3.1.2)
     deform_width: int = 64
-    grouping: str = "evenodd"  # "evenodd": all paths one shape (fonts, digits); "layers": one shape per path
+    grouping: str = "evenodd"  # GROUPINGS: one even-odd shape (fonts, digits), one nonzero shape (icons), or layers
     palette: str = ""  # fixed colours "#rrggbb,#rrggbb,..." (empty: learned colours)
     segments: int = 12  # default k at inference
     min_segments: int = 7  # training range of k (sec. 3.5)
@@ -114,7 +119,7 @@ class ModelConfig(JsonConfig):
         if self.min_segments > self.max_segments:
             raise ConfigError(f"ModelConfig.min_segments ({self.min_segments}) is above max_segments ({self.max_segments})")
         for key, allowed in (("arch", ("im2vec", "imagevae")), ("fit", FITS),
-                             ("grouping", ("evenodd", "layers"))):
+                             ("grouping", GROUPINGS)):
             if getattr(self, key) not in allowed:
                 raise ConfigError(f"ModelConfig.{key} must be one of {allowed}, got {getattr(self, key)!r}")
 

@@ -19,7 +19,7 @@ def test_path_decoder_keeps_length_3k(k):
     assert (out >= 0).all() and (out <= 1).all()
 
 
-@pytest.mark.parametrize("paths,grouping", [(1, "evenodd"), (3, "evenodd"), (4, "layers")])
+@pytest.mark.parametrize("paths,grouping", [(1, "evenodd"), (3, "evenodd"), (3, "nonzero"), (4, "layers")])
 @pytest.mark.parametrize("batch", [1, 2])
 def test_model_shapes(paths, grouping, batch):
     m = Im2Vec(ModelConfig(paths=paths, grouping=grouping, **TINY))
@@ -27,10 +27,49 @@ def test_model_shapes(paths, grouping, batch):
     for k in (7, 12):
         dec, mu, logvar = m(x, k)
         assert dec.points.shape == (batch, paths, 3 * k, 2)
-        g = 1 if grouping == "evenodd" else paths
+        g = paths if grouping == "layers" else 1
         assert dec.colors.shape == (batch, g, 3) and dec.depth.shape == (batch, g)
         assert mu.shape == logvar.shape == (batch, 16)
         assert m.render(dec).shape == (batch, 3, 32, 32)
+
+
+def test_nonzero_grouping_keeps_overlaps_filled():
+    """Two copies of one path: even-odd cancels them (a hole), nonzero draws the path once."""
+    torch.manual_seed(0)
+    x = torch.rand(1, 3, 32, 32)
+    renders = {}
+    for grouping in ("evenodd", "nonzero"):
+        torch.manual_seed(0)
+        m = Im2Vec(ModelConfig(paths=2, grouping=grouping, palette="#000000", **TINY))
+        dec = m(x, 8, sample=False)[0]
+        assert dec.fill_rule == grouping and dec.colors.shape == (1, 1, 3)
+        dec.points = dec.points[:, :1].repeat(1, 2, 1, 1)  # (1, 2, 24, 2): path 0 twice
+        renders[grouping] = m.render(dec, composite="over")
+        one = Im2Vec(ModelConfig(paths=1, grouping=grouping, palette="#000000", **TINY))
+        dec1 = one(x, 8, sample=False)[0]
+        dec1.points = dec.points[:, :1]
+        renders[grouping + "1"] = one.render(dec1, composite="over")
+    assert renders["nonzero1"].min() < 0.2  # the path draws ink
+    assert torch.allclose(renders["nonzero"], renders["nonzero1"], atol=1e-5)
+    inside = renders["nonzero1"] < 0.05  # deep inside the path: even-odd cancels the copies there
+    assert inside.any() and (renders["evenodd"][inside] > 0.95).all()
+
+
+def test_grow_state_into_more_paths_and_another_grouping():
+    from im2vec_cli.model.pretrained import grow_state
+
+    torch.manual_seed(0)
+    old = ModelConfig(paths=2, palette="#000000", **TINY)
+    new = ModelConfig(paths=5, grouping="nonzero", palette="#000000", **TINY)
+    state = Im2Vec(old).state_dict()
+    grown = grow_state(state, old, new, seed=3)
+    Im2Vec(new).load_state_dict(grown)  # strict: every key and shape fits
+    step0, step1 = state["codes.step"], grown["codes.step"]
+    assert step1.shape == (5, 16) and torch.equal(step1[:2], step0)
+    assert not torch.equal(step1[2:4], step0) and (step1[2:4] - step0).abs().max() < 0.2
+    assert all(torch.equal(v, grown[k]) for k, v in state.items() if k != "codes.step")
+    with pytest.raises(ModelError, match="latent"):
+        grow_state(state, old, ModelConfig(paths=2, palette="#000000", **{**TINY, "latent": 8}))
 
 
 def test_bad_image_shape_names_the_argument():

@@ -79,8 +79,8 @@ class _Progress:
 @click.option("--size", type=click.IntRange(8), help="Image size (power of two). [64]")
 @click.option("--paths", type=click.IntRange(1), help="Paths per image. [4]")
 @click.option("--latent", type=click.IntRange(1), help="Latent size. [128]")
-@click.option("--grouping", type=click.Choice(["evenodd", "layers"]),
-              help="evenodd: one shape of all paths (glyphs, digits); layers: one coloured layer per path. [evenodd]")
+@click.option("--grouping", type=click.Choice(["evenodd", "nonzero", "layers"]),
+              help="evenodd: one even-odd shape of all paths (glyphs, digits); nonzero: one nonzero shape (overlaps stay filled; icons); layers: one coloured layer per path. [evenodd]")
 @click.option("--batch", type=click.IntRange(1), help="Batch size. [64]")
 @click.option("--steps", type=click.IntRange(1), help="Optimiser steps. [5000]")
 @click.option("--epochs", type=Finite(0, min_open=True), help="Instead of --steps: passes over the data.")
@@ -91,7 +91,8 @@ class _Progress:
 @click.option("--resume", is_flag=True, help="Continue exactly from RUN/checkpoint.pt.")
 @click.option("--init", "init_model", default=None, metavar="NAME|DIR",
               help="Fine-tune: start from this model's weights (a shipped name or a model folder), with a "
-                   "fresh optimiser and schedule; the model options come from it.")
+                   "fresh optimiser and schedule; the model options come from it, but --paths and --grouping "
+                   "may change (new paths start as copies of the model's).")
 @device_option
 def train(data_dir, run_dir, val_dir, config_file, arch, size, paths, latent, grouping, batch, steps, epochs, lr,
           beta, seed, workers, resume, init_model, device):
@@ -115,10 +116,16 @@ def train(data_dir, run_dir, val_dir, config_file, arch, size, paths, latent, gr
     if init_model is not None:
         if resume:
             raise click.UsageError("--init starts a new run; --resume continues one: give one of them")
-        if model_given:
-            raise click.UsageError("--init takes the model options from the model; drop " + ", ".join(sorted(model_given)))
+        from ..config import ModelConfig
+        from ..model.pretrained import GROWABLE, grow_state
+
+        fixed = sorted(set(model_given) - set(GROWABLE))
+        if fixed:
+            raise click.UsageError("--init takes the model options from the model (but " + ", ".join(GROWABLE)
+                                   + "); drop " + ", ".join(fixed))
         start = load_model(init_model, "cpu", 0, raster_ok=True)
-        model_cfg, init_state = start.config, start.state_dict()
+        model_cfg = ModelConfig.from_dict({**start.config.to_dict(), **model_given})
+        init_state = grow_state(start.state_dict(), start.config, model_cfg, train_cfg.seed)
 
     def _term(signum, frame):  # `kill` (and SIGINT-ignoring background jobs) checkpoint like Ctrl-C
         raise KeyboardInterrupt

@@ -141,3 +141,33 @@ def export_checkpoint(run_dir: str | Path, out_dir: str | Path, *, half: bool = 
     if prior is not None and prior.config.step == int(state["step"]):
         model.latent_prior = prior
     return save_pretrained(model, out_dir, half=half), int(state["step"])
+
+
+GROWABLE = ("paths", "grouping")  # ModelConfig keys a fine-tune (`train --init`) may change
+
+
+def grow_state(state: dict[str, torch.Tensor], old: ModelConfig, new: ModelConfig,
+               seed: int = 0) -> dict[str, torch.Tensor]:
+    """A state dict of ``old`` made to load into a model of ``new``, which may differ from it in
+    ``GROWABLE`` keys only (fine-tuning into more paths or another grouping).
+
+    The LSTM runs over any number of steps, so only the per-path step embeddings
+    ``codes.step (P, D)`` depend on the path count: path ``i`` of the new model starts from
+    old path ``i mod P_old`` plus noise of the embeddings' initial scale (0.02), so duplicated
+    paths can part. Every other tensor has the same shape in both configs and is copied.
+    """
+    import dataclasses
+
+    changed = sorted(k for k in dataclasses.asdict(old) if getattr(old, k) != getattr(new, k))
+    bad = [k for k in changed if k not in GROWABLE]
+    if bad:
+        raise ModelError(f"only {', '.join(GROWABLE)} can change when fine-tuning; the model's {', '.join(bad)} differ")
+    out = dict(state)
+    step = state.get("codes.step")
+    if step is not None and step.shape[0] != new.paths:
+        gen = torch.Generator().manual_seed(seed)
+        rows = step.float()[torch.arange(new.paths) % step.shape[0]]  # (P_new, D)
+        fresh = torch.arange(new.paths) >= step.shape[0]
+        noise = torch.randn(rows.shape, generator=gen) * 0.02
+        out["codes.step"] = (rows + noise * fresh[:, None]).to(step.dtype)
+    return out

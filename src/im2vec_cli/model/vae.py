@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
-from ..config import ModelConfig
+from ..config import GROUPINGS, ModelConfig
 from ..raster import render_supersampled
 from ..raster.bezier import flatten_closed, polygon_area
 from .decoder import PathCodes, PathDecoder
@@ -57,8 +57,8 @@ class Im2Vec(nn.Module):
         super().__init__()
         if config.arch != "im2vec":
             raise ValueError(f"Im2Vec needs arch 'im2vec', got {config.arch!r} (use model.imagevae.build_model)")
-        if config.grouping not in ("evenodd", "layers"):
-            raise ValueError(f"grouping must be 'evenodd' or 'layers', got {config.grouping!r}")
+        if config.grouping not in GROUPINGS:
+            raise ValueError(f"grouping must be one of {GROUPINGS}, got {config.grouping!r}")
         self.config = config
         self.encoder = Encoder(config.image_size, config.channels, config.latent, config.enc_width)
         self.codes = PathCodes(config.latent, config.lstm_hidden, config.code, config.paths)
@@ -103,10 +103,10 @@ class Im2Vec(nn.Module):
             if k < 1:
                 raise ValueError(f"segments must be >= 1, got {k}")
             pts = self.decoder(code.flatten(0, 1), k, centre).view(b, cfg.paths, 3 * k, 2)  # (B, P, 3k, 2)
-        if cfg.grouping == "evenodd":
-            # one shape, all paths under even-odd: its colour is the mean of the path colours
+        if cfg.grouping in ("evenodd", "nonzero"):
+            # one shape, all paths under that fill rule: its colour is the mean of the path colours
             return Decoded(pts, color.mean(1, keepdim=True), depth.new_zeros(b, 1),
-                           torch.zeros(cfg.paths, dtype=torch.long, device=z.device), "evenodd", counts)
+                           torch.zeros(cfg.paths, dtype=torch.long, device=z.device), cfg.grouping, counts)
         return Decoded(pts, color, depth, None, "nonzero", counts)
 
     def _decode_ragged(self, code: torch.Tensor, counts: torch.Tensor, centre: torch.Tensor) -> torch.Tensor:

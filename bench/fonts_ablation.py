@@ -1,0 +1,171 @@
+"""What makes the fonts vector model several times the raster baseline's error? (issue 26, part 3)
+
+Every row scores the same test glyphs by the paper's Table 1 figure (MSE on [0, 1] pixels of
+the cairosvg render of the SVG against the input), one factor at a time, from the shipped
+``fonts`` model:
+
+- *amortised*: ``z = mu`` decoded at k = 12 (what ``vectorize --no-refine`` writes) and at k = 25;
+- *z optimised*: the latent fitted to each glyph (Adam through our renderer): the amortisation
+  gap of the encoder;
+- *path codes optimised*: the LSTM's per-path codes fitted directly (the path decoder kept): what
+  the decoder can draw with its P paths when the latent is not the bottleneck;
+- *points optimised*: the control points themselves fitted (P paths of k segments, even-odd),
+  from the amortised start: the bound of the representation at that P and k;
+- the ImageVAE baseline on the same glyphs, for the ratio.
+
+Also the MSE that the training loss sees (our soft render at the training tau) beside the
+cairosvg one, for the soft edge. Prints a Markdown table; ``--markdown FILE`` writes it too.
+
+    python bench/fonts_ablation.py [--images tests/assets/fonts_test] [--steps 150]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from im2vec_cli.data.folder import list_images
+from im2vec_cli.files import load_image
+from im2vec_cli.infer import model_input, to_vector
+from im2vec_cli.model.pretrained import from_pretrained
+from im2vec_cli.model.vae import Decoded
+from im2vec_cli.raster.bezier import subdivide_to
+from im2vec_cli.vector import rasterize_svg, to_svg
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def svg_mse(model, dec: Decoded, images: torch.Tensor, places) -> list[float]:
+    """Per-image MSE of the cairosvg render of what ``to_vector`` writes, ``images (B, 3, S, S)``."""
+    out = []
+    for i, place in enumerate(places):
+        vec = to_vector(dec, i, place)
+        h, w = images.shape[2:]
+        arr = torch.from_numpy(rasterize_svg(to_svg(vec, 3), w, h)).permute(2, 0, 1).float()
+        out.append(float(((arr - images[i]) ** 2).mean()))
+    return out
+
+
+def soft_mse(model, dec: Decoded, x: torch.Tensor, tau: float) -> float:
+    with torch.no_grad():
+        return float(((model.render(dec, tau=tau, composite="soft") - x) ** 2).mean())
+
+
+def fit(model, x: torch.Tensor, params: list[torch.Tensor], make_dec, steps: int, lr: float) -> Decoded:
+    """Adam on ``params`` to the MSE of a 2x2-supersampled render (tau 0.3 px) against ``x``."""
+    opt = torch.optim.Adam(params, lr=lr)
+    for _ in range(steps):
+        dec = make_dec()
+        loss = ((model.render(dec, tau=0.3, composite="over", supersample=2) - x) ** 2).mean()
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+    with torch.no_grad():
+        return make_dec()
+
+
+def decode_codes(model, code: torch.Tensor, k: int, like: Decoded) -> Decoded:
+    """Per-path codes ``(B, P, C)`` -> ``Decoded`` with the model's path decoder (the LSTM skipped)."""
+    b, p = code.shape[:2]
+    centre = model.centres.to(code.dtype).expand(b, -1, -1).flatten(0, 1)  # (B*P, 2)
+    pts = model.decoder(code.flatten(0, 1), k, centre).view(b, p, 3 * k, 2)  # (B, P, 3k, 2)
+    return Decoded(pts, like.colors, like.depth, like.shape_index, like.fill_rule)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--model", default="fonts")
+    ap.add_argument("--baseline", default=str(ROOT / "models" / "baselines" / "fonts-imagevae"))
+    ap.add_argument("--images", default=str(ROOT / "tests" / "assets" / "fonts_test"))
+    ap.add_argument("--steps", type=int, default=150, help="Adam steps of each optimised row")
+    ap.add_argument("--limit", type=int, default=None, help="the first N images only (a quick check)")
+    ap.add_argument("--markdown", default=None)
+    ap.add_argument("--json", default=None)
+    args = ap.parse_args()
+    torch.manual_seed(0)
+    model = from_pretrained(args.model).float().eval()
+    for p in model.parameters():
+        p.requires_grad_(False)
+    files = list_images(args.images)[: args.limit]
+    imgs = [load_image(f) for f in files]
+    pairs = [model_input(model, im) for im in imgs]
+    x = torch.stack([p[0] for p in pairs])  # (B, 3, S, S) model input
+    places = [p[1] for p in pairs]
+    target = torch.stack(imgs)  # (B, 3, H, W) inputs at their own size
+    tau = 0.3
+    rows = []
+
+    def row(name, dec, t0, note=""):
+        errs = svg_mse(model, dec, target, places)
+        rows.append({"row": name, "recon_l2": float(np.mean(errs)), "stderr": float(np.std(errs) / np.sqrt(len(errs))),
+                     "soft_mse": soft_mse(model, dec, x, tau), "seconds": time.perf_counter() - t0, "note": note})
+        print(json.dumps(rows[-1]), flush=True)
+
+    with torch.no_grad():
+        mu, _ = model.encode(x)
+    for k in (12, 25):
+        t0 = time.perf_counter()
+        with torch.no_grad():
+            dec = model.decode(mu, k)
+        row(f"amortised, k = {k}", dec, t0, "vectorize --no-refine")
+    base = model.decode(mu, 12)
+
+    t0 = time.perf_counter()
+    z = mu.clone().requires_grad_(True)
+    row("z optimised, k = 12", fit(model, x, [z], lambda: model.decode(z, 12), args.steps, 0.02), t0,
+        "the encoder's amortisation gap")
+
+    t0 = time.perf_counter()
+    with torch.no_grad():
+        code0 = model.codes(mu)[0]  # (B, P, C)
+    code = code0.clone().requires_grad_(True)
+    row("path codes optimised, k = 12", fit(model, x, [code], lambda: decode_codes(model, code, 12, base),
+                                            args.steps, 0.02), t0, "the LSTM bypassed, the path decoder kept")
+
+    def points_row(start: torch.Tensor, rule: str, note: str):
+        t0 = time.perf_counter()
+        logit = torch.logit(start.clamp(1e-4, 1 - 1e-4)).requires_grad_(True)  # (B, P, 3k, 2)
+        mk = lambda: Decoded(torch.sigmoid(logit), base.colors, base.depth, base.shape_index, rule)  # noqa: E731
+        k = start.shape[2] // 3
+        row(f"points optimised, P = {start.shape[1]}, k = {k}, {rule}", fit(model, x, [logit], mk, args.steps, 0.05),
+            t0, note)
+
+    pts = base.points.detach()  # (B, P, 36, 2)
+    points_row(pts, base.fill_rule, "the representation's bound at this P and k")
+    finer = torch.stack([torch.stack([subdivide_to(c, 24) for c in img]) for img in pts])  # (B, P, 72, 2), same shapes
+    points_row(finer, base.fill_rule, "twice the segments")
+    points_row(pts, "nonzero", "overlaps filled instead of cut")
+
+    if args.baseline and Path(args.baseline).is_dir():
+        ivae = from_pretrained(args.baseline).float().eval()
+        with torch.no_grad():
+            rec = ivae.decode(ivae.encode(x)[0]).clamp(0, 1)
+        errs = ((rec - x) ** 2).mean(dim=(1, 2, 3))
+        rows.append({"row": "ImageVAE baseline (raster)", "recon_l2": float(errs.mean()),
+                     "stderr": float(errs.std() / np.sqrt(len(errs))), "soft_mse": float("nan"), "seconds": 0.0,
+                     "note": "its raster output"})
+    ref = next(r["recon_l2"] for r in rows if r["row"].startswith("ImageVAE")) if rows[-1]["row"].startswith(
+        "ImageVAE") else None
+    lines = [f"{len(files)} glyphs from {args.images}; model {args.model}; {args.steps} Adam steps per optimised row.",
+             "", "| row | recon L2 (cairosvg) | x ImageVAE | MSE of the training render (soft, tau 0.3) | s | what it tells |",
+             "|---|---|---|---|---|---|"]
+    for r in rows:
+        ratio = f"{r['recon_l2'] / ref:.1f}" if ref else "–"
+        soft = "–" if np.isnan(r["soft_mse"]) else f"{r['soft_mse']:.4f}"
+        lines.append(f"| {r['row']} | {r['recon_l2']:.4f} ± {r['stderr']:.4f} | {ratio} | {soft} | "
+                     f"{r['seconds']:.0f} | {r['note']} |")
+    text = "\n".join(lines) + "\n"
+    print(text)
+    if args.markdown:
+        Path(args.markdown).write_text(text)
+    if args.json:
+        Path(args.json).write_text(json.dumps(rows, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
