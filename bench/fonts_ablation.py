@@ -84,6 +84,7 @@ def main():
     ap.add_argument("--images", default=str(ROOT / "tests" / "assets" / "fonts_test"))
     ap.add_argument("--steps", type=int, default=150, help="Adam steps of each optimised row")
     ap.add_argument("--limit", type=int, default=None, help="the first N images only (a quick check)")
+    ap.add_argument("--more", action="store_true", help="also the points rows at k = 24 and under nonzero")
     ap.add_argument("--markdown", default=None)
     ap.add_argument("--json", default=None)
     args = ap.parse_args()
@@ -137,9 +138,10 @@ def main():
 
     pts = base.points.detach()  # (B, P, 36, 2)
     points_row(pts, base.fill_rule, "the representation's bound at this P and k")
-    finer = torch.stack([torch.stack([subdivide_to(c, 24) for c in img]) for img in pts])  # (B, P, 72, 2), same shapes
-    points_row(finer, base.fill_rule, "twice the segments")
-    points_row(pts, "nonzero", "overlaps filled instead of cut")
+    if args.more:
+        finer = torch.stack([torch.stack([subdivide_to(c, 24) for c in img]) for img in pts])  # (B, P, 72, 2)
+        points_row(finer, base.fill_rule, "twice the segments")
+        points_row(pts, "nonzero", "overlaps filled instead of cut")
 
     if args.baseline and Path(args.baseline).is_dir():
         ivae = from_pretrained(args.baseline).float().eval()
@@ -149,22 +151,28 @@ def main():
         rows.append({"row": "ImageVAE baseline (raster)", "recon_l2": float(errs.mean()),
                      "stderr": float(errs.std() / np.sqrt(len(errs))), "soft_mse": float("nan"), "seconds": 0.0,
                      "note": "its raster output"})
-    ref = next(r["recon_l2"] for r in rows if r["row"].startswith("ImageVAE")) if rows[-1]["row"].startswith(
-        "ImageVAE") else None
-    lines = [f"{len(files)} glyphs from {args.images}; model {args.model}; {args.steps} Adam steps per optimised row.",
-             "", "| row | recon L2 (cairosvg) | x ImageVAE | MSE of the training render (soft, tau 0.3) | s | what it tells |",
-             "|---|---|---|---|---|---|"]
-    for r in rows:
-        ratio = f"{r['recon_l2'] / ref:.1f}" if ref else "–"
-        soft = "–" if np.isnan(r["soft_mse"]) else f"{r['soft_mse']:.4f}"
-        lines.append(f"| {r['row']} | {r['recon_l2']:.4f} ± {r['stderr']:.4f} | {ratio} | {soft} | "
-                     f"{r['seconds']:.0f} | {r['note']} |")
-    text = "\n".join(lines) + "\n"
+    where = Path(args.images).resolve()
+    where = where.relative_to(ROOT) if where.is_relative_to(ROOT) else where
+    head = f"{len(files)} glyphs from {where}; model {args.model}; {args.steps} Adam steps per optimised row."
+    text = table(rows, head)
     print(text)
     if args.markdown:
         Path(args.markdown).write_text(text)
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=1) + "\n")
+
+
+def table(rows: list[dict], head: str) -> str:
+    """Markdown of the rows, each against the ImageVAE row (when there is one)."""
+    ref = next((r["recon_l2"] for r in rows if r["row"].startswith("ImageVAE")), None)
+    lines = [head, "", "| row | recon L2 (cairosvg) | x ImageVAE | MSE of the training render (soft, tau 0.3) | s | "
+             "what it tells |", "|---|---|---|---|---|---|"]
+    for r in rows:
+        ratio = f"{r['recon_l2'] / ref:.1f}" if ref else "–"
+        soft = "–" if np.isnan(r["soft_mse"]) else f"{r['soft_mse']:.4f}"
+        lines.append(f"| {r['row']} | {r['recon_l2']:.4f} ± {r['stderr']:.4f} | {ratio} | {soft} | "
+                     f"{r['seconds']:.0f} | {r['note']} |")
+    return "\n".join(lines) + "\n"
 
 
 if __name__ == "__main__":
