@@ -4,7 +4,7 @@ For each model: 24 samples drawn by the tool from N(0, I) (`--prior normal`, wha
 gave before the fitted prior), 24 from the model's fitted prior (the default), and 24 random
 images of the model's test split (DATA/NAME/test when built, else tests/assets/NAME_test).
 
-Usage: python docs/make_sample_sheets.py [--data DATA] [--out docs/samples] [--seed 0]
+Usage: python docs/make_sample_sheets.py [--data DATA] [--out docs/samples] [--seed 0] [--only emoji,icons]
 """
 
 from __future__ import annotations
@@ -65,11 +65,12 @@ def main() -> None:
     ap.add_argument("--data", type=Path, default=None)
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "samples")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--only", default=None, help="comma-separated models (default: all four)")
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         for name in MODELS:
-            if not (REPO_MODELS / name).is_dir():
+            if not (REPO_MODELS / name).is_dir() or (args.only and name not in args.only.split(",")):
                 continue
             real, where = test_sheet(name, args.data, args.seed)
             panels = [(f"{name}: im2vec sample --prior normal (N(0, I), before)", sample_sheet(name, "normal", args.seed, Path(tmp))),
