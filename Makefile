@@ -4,7 +4,7 @@ DATA ?= data
 PIP ?= .venv/bin/pip
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: install test test-slow fuzz lint bench bench-vectorize bench-outlines bench-folder results demo data-fonts data-mnist data-emoji data-icons clean
+.PHONY: install test test-slow fuzz lint bench bench-cli bench-vectorize bench-outlines bench-folder results demo data-fonts data-mnist data-emoji data-icons clean
 
 install: .venv/.installed
 
@@ -30,7 +30,15 @@ lint: install
 bench: install
 	$(PY) bench/raster.py
 	$(PY) bench/train.py
-	$(PY) bench/cli.py
+	$(PY) bench/cli.py --rounds 3
+
+# One picture start to finish against `import torch`, quiet and with one core busy, beside the commit
+# CLI_BEFORE (checked out in bench/.before-cli): docs/BENCHMARKS.md. About 10 minutes on 2 cores.
+CLI_BEFORE ?= 549518d
+bench-cli: install
+	test -f /usr/share/fonts/truetype/freefont/FreeSerif.ttf || (apt-get update -q && apt-get install -y -q fonts-freefont-ttf)
+	test -d bench/.before-cli || git worktree add --detach bench/.before-cli $(CLI_BEFORE)
+	$(PY) bench/cli.py --rounds 7 --before bench/.before-cli --markdown docs/BENCHMARKS.md
 
 # Vectorize fidelity against potrace and vtracer (issue "Vectorize fidelity"); the tools and
 # the held-out font are installed here only, they are not runtime dependencies.

@@ -710,12 +710,14 @@ def test_read_only_output_folder(tmp_path, model_dir, monkeypatch):
     ro.mkdir()
     ro.chmod(0o555)
     if os.geteuid() == 0:  # root ignores permissions: make creating the temp file fail as it would
-        import tempfile
+        real_open = os.open
 
-        def denied(*a, **k):
-            raise PermissionError(errno.EACCES, "Permission denied", str(ro))
+        def denied(path, *a, **k):
+            if Path(path).parent == ro:
+                raise PermissionError(errno.EACCES, "Permission denied", str(path))
+            return real_open(path, *a, **k)
 
-        monkeypatch.setattr(tempfile, "mkstemp", denied)
+        monkeypatch.setattr(os, "open", denied)
     res = CliRunner().invoke(cli, ["vectorize", src, "-o", str(ro / "out.svg"), "--model", model_dir])
     ro.chmod(0o755)
     assert res.exit_code == 1 and res.stderr.startswith("Error:") and len(res.stderr.splitlines()) == 1
@@ -754,9 +756,11 @@ def test_batch_of_1000_with_5_percent_bad(tmp_path, model_dir, monkeypatch):
     """Every good file is written (refined, in worker processes: the defaults for a folder this
     large), every bad one is listed, exit 1; images are streamed."""
     import im2vec_cli.parallel as parallel
+    import im2vec_cli.runtime as runtime
 
     jobs, real = [], parallel.vectorize_chunks
     monkeypatch.setattr(parallel, "vectorize_chunks", lambda *a, **kw: jobs.append(kw) or real(*a, **kw))
+    monkeypatch.setattr(runtime, "free_cores", lambda: os.cpu_count() or 1)  # a quiet machine, whatever runs beside
     d = tmp_path / "in"
     d.mkdir()
     good = _glyph_like(32)
@@ -872,8 +876,26 @@ def test_reliability_doc_lists_every_case():
         assert rows.get(name) == expect, name
 
 
+def test_an_interrupt_just_after_the_temp_file_is_made_leaves_nothing(tmp_path, monkeypatch):
+    """Ctrl-C can land between the temporary file's creation and the code that would remove it
+    (a batch interrupted mid-write left `.g011.svg.XXXX.tmp` behind): it is removed all the same."""
+    from im2vec_cli.files import atomic_write
+
+    real_open = os.open
+
+    def created_then_interrupted(path, *a, **k):
+        real_open(path, *a, **k)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(os, "open", created_then_interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        atomic_write(tmp_path / "a.svg", "<svg/>", durable=False)
+    monkeypatch.undo()
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_outputs_get_the_usual_file_mode(tmp_path):
-    """Atomic writes go through mkstemp (mode 0600); the final file follows the umask."""
+    """Atomic writes go through a temporary file; the final file follows the umask."""
     from im2vec_cli.files import atomic_write
 
     old = os.umask(0o022)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import io
 import os
-import tempfile
+import secrets
 import warnings
 from pathlib import Path
 
@@ -32,9 +32,17 @@ def atomic_write(path: str | os.PathLike, data: bytes | str, *, durable: bool = 
     directory = path.parent if str(path.parent) else Path(".")
     # ".NAME.XXXXXXXX.tmp": keep the temp name within NAME_MAX whatever the target's length
     stem = os.fsdecode(os.fsencode(path.name)[: NAME_MAX - 16])
-    fd, tmp = tempfile.mkstemp(prefix=f".{stem}.", suffix=".tmp", dir=directory)
+    tmp = None
     try:
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600 files; outputs get the usual mode
+        # The name is chosen before the file exists, so that an interrupt (Ctrl-C) arriving
+        # just after it is created still finds it to remove.
+        while True:
+            tmp = directory / f".{stem}.{secrets.token_hex(4)}.tmp"
+            try:
+                fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o666)
+                break
+            except FileExistsError:
+                tmp = None
         with os.fdopen(fd, "wb") as f:
             f.write(raw)
             if durable:
@@ -44,17 +52,12 @@ def atomic_write(path: str | os.PathLike, data: bytes | str, *, durable: bool = 
         if durable:
             _fsync_dir(directory)  # make the rename itself survive a power cut
     except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
+        if tmp is not None:
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass
         raise
-
-
-def _umask() -> int:
-    mask = os.umask(0)  # the only portable way to read it is to set it
-    os.umask(mask)
-    return mask
 
 
 def _fsync_dir(directory: Path) -> None:

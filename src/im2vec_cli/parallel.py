@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import collections
 import multiprocessing
-import os
 import signal
 from collections.abc import Iterable, Iterator
 
@@ -21,12 +20,11 @@ _state: dict = {}
 
 def _init(model_ref: str, device: str, seed: int, threads: int, options: dict) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and ends the pool
-    import torch
 
     from .api import load_model
-    from .runtime import seed_everything
+    from .runtime import seed_everything, set_threads
 
-    torch.set_num_threads(threads)
+    set_threads(threads)
     seed_everything(seed)
     _state.update(model=load_model(model_ref, device), options=options)
 
@@ -37,16 +35,20 @@ def _run(pictures: list) -> list:
     return vectorize(pictures, _state["model"], **_state["options"])
 
 
-def vectorize_chunks(chunks: Iterable[list], model_ref: str, *, jobs: int, device: str = "auto", seed: int = 0,
-                     **options) -> Iterator[list]:
+def vectorize_chunks(chunks: Iterable[list], model_ref: str, *, jobs: int, threads: int | None = None,
+                     device: str = "auto", seed: int = 0, **options) -> Iterator[list]:
     """``api.vectorize(chunk, model, **options)`` for each chunk of pictures, in ``jobs``
-    worker processes (each with ``cpu_count // jobs`` torch threads and the model
+    worker processes (each with ``threads`` torch threads, default the free cores shared
+    among the jobs, ``runtime.free_cores``, and the model
     ``model_ref``, a name or a folder). Yields each chunk's vector images in the order of
     the chunks; at most ``2 * jobs`` chunks are in flight, so memory stays bounded for any
     number of chunks."""
     if jobs < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
-    threads = max(1, (os.cpu_count() or 1) // jobs)
+    if threads is None:
+        from .runtime import free_cores
+
+        threads = max(1, free_cores() // jobs)
     if "forkserver" in multiprocessing.get_all_start_methods():  # one import of torch, forked per worker
         ctx = multiprocessing.get_context("forkserver")
         ctx.set_forkserver_preload(["im2vec_cli.api"])

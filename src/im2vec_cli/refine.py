@@ -29,7 +29,7 @@ from .infer import flat_result, model_input, segment_counts, to_vector
 from .model.vae import Im2Vec
 from .optim import Adam
 from .raster import flatten_closed, gaussian_pyramid, polygon_area, pyramid_l2, render_pyramid, segment_controls
-from .vector import VectorImage, VectorShape, rasterize_svg, resolve_overlaps, simplify
+from .vector import VectorImage, VectorShape, fill_vector, resolve_overlaps, simplify
 from .vector.fit import split_segments
 from .vector.outline import Corners, redrawn, traced, untangle
 from .vector.trace import background_color, two_tone
@@ -102,6 +102,14 @@ def _geometry_penalty(points: torch.Tensor, real: torch.Tensor, size: tuple[int,
     chord = (seg[..., 3, :] - seg[..., 0, :]).norm(dim=-1)  # (B, P, K) px
     collapse = (F.relu(s.min_segment_px - chord).square() * real[..., 0::3]).flatten(1).sum(1)
     return s.bounds_weight * bounds + s.collapse_weight * collapse
+
+
+def _box3(a: np.ndarray) -> np.ndarray:
+    """The mean of each pixel's 3 x 3 neighbourhood, edges mirrored (``scipy.ndimage.uniform_filter(a, 3)``,
+    without importing SciPy's 0.3 s of modules for it)."""
+    p = np.pad(a, 1, mode="symmetric")
+    rows = (p[:-2] + p[1:-1] + p[2:]) / 3
+    return (rows[:, :-2] + rows[:, 1:-1] + rows[:, 2:]) / 3
 
 
 def _converged(history: list[float], s: RefineSettings) -> bool:
@@ -473,18 +481,15 @@ class Refinement:
 
     def split_where_wrong(self, vec: VectorImage, flags: Corners, row: int) -> tuple[VectorImage, Corners, int]:
         """Halve every segment along which the render still differs from the input ``row`` by
-        more than ``split_error`` (mean squared, over the pixels the segment passes, cairo at
-        the input's size; scaled by ``(tolerance / 0.5)^2``): the polish then has the points
-        it lacked there.
+        more than ``split_error`` (mean squared, over the pixels the segment passes and their
+        neighbours, cairo at the input's size; scaled by ``(tolerance / 0.5)^2``): the polish
+        then has the points it lacked there.
 
         Returns the new image, its corner flags and the segments split."""
-        from scipy.ndimage import uniform_filter
-
         image = self.images[row]
         _, h, w = image.shape
-        got = rasterize_svg(vec.to_svg(3), w, h)  # (H, W, 3)
-        err = ((got - image.permute(1, 2, 0).double().cpu().numpy()) ** 2).sum(-1)
-        err = uniform_filter(err, 3)
+        got = fill_vector(vec, w, h)  # (H, W, 3): cairo, as rasterize_svg(vec.to_svg(3)) draws it
+        err = _box3(((got - image.permute(1, 2, 0).double().cpu().numpy()) ** 2).sum(-1))
         limit = self.s.split_error * (self.s.tolerance / 0.5) ** 2  # a looser tolerance splits less
         shapes, out_flags, count = [], [], 0
         for sh, fl in zip(vec.shapes, flags):

@@ -1,7 +1,8 @@
-"""Device resolution, seeding and progress bars."""
+"""Device resolution, CPU threads, seeding and progress bars."""
 
 from __future__ import annotations
 
+import os
 import random
 import sys
 
@@ -32,6 +33,58 @@ def resolve_device(spec: str = "auto") -> torch.device:
     if dev.type not in ("cpu", "cuda", "mps"):
         raise Im2VecError(f"unsupported device {spec!r}")
     return dev
+
+
+def cpu_cores() -> int:
+    """The CPU cores this process may run on."""
+    if hasattr(os, "sched_getaffinity"):
+        return max(1, len(os.sched_getaffinity(0)))
+    return os.cpu_count() or 1
+
+
+def free_cores(samples: int = 3, interval: float = 0.01) -> int:
+    """The cores not busy with other programs (at least 1): the cores less the other tasks
+    running now (``/proc/loadavg``'s count of runnable tasks, which includes this process;
+    the fewest of ``samples`` readings ``interval`` s apart, so that a task passing through
+    does not count; elsewhere the one-minute load average)."""
+    import time
+
+    cores = cpu_cores()
+    try:
+        running = []
+        for i in range(samples):
+            if i:
+                time.sleep(interval)
+            with open("/proc/loadavg") as f:
+                running.append(int(f.read().split()[3].split("/")[0]))
+        others = min(running) - 1
+    except (OSError, ValueError, IndexError):
+        try:
+            others = round(os.getloadavg()[0])
+        except (OSError, AttributeError):
+            others = 0
+    return max(1, min(cores, cores - others))
+
+
+def intra_op_threads(pictures: int, jobs: int = 1, free: int | None = None) -> int:
+    """Torch threads for each of ``jobs`` processes refining ``pictures`` pictures in all, with
+    ``free`` cores (default ``free_cores()``; take it before torch has run anything, as its
+    idle threads spin for a while and count as busy).
+
+    One picture gets one thread: its renders are at most ``RefineSettings.max_side`` px, too
+    small to share, and a second thread's spin-waits at every op cost 4x when another program
+    holds the other core (bench/cli.py). Several share the free cores among the jobs, so
+    that no more threads run than there are cores to run them.
+    """
+    if pictures <= 1:
+        return 1
+    return max(1, (free_cores() if free is None else free) // max(1, jobs))
+
+
+def set_threads(n: int) -> None:
+    """Run torch's CPU ops on ``n`` threads, unless ``OMP_NUM_THREADS`` says how many."""
+    if not os.environ.get("OMP_NUM_THREADS"):
+        torch.set_num_threads(max(1, n))
 
 
 def seed_everything(seed: int) -> None:

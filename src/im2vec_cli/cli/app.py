@@ -6,6 +6,8 @@ batch failed); 2 bad usage; 130 interrupted.
 
 from __future__ import annotations
 
+import contextlib
+import gc
 import traceback
 
 import click
@@ -40,6 +42,22 @@ def fail(ctx: click.Context, message: str):
         traceback.print_exc()
     click.echo(f"Error: {message}", err=True)
     ctx.exit(1)
+
+
+@contextlib.contextmanager
+def starting_up():
+    """Imports and model loading without the cyclic garbage collector, whose passes over the
+    millions of objects that torch and the model allocate, and that live as long as the
+    process, cost 0.2-0.3 s of a one-picture `vectorize` (bench/cli.py); those objects are
+    then frozen out of later collections (``gc.freeze``), and collection goes on as before."""
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        gc.freeze()
+        if was:
+            gc.enable()
 
 
 def warn(message: str) -> None:

@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import collections
-import os
 
 import click
 
 from ..errors import Im2VecError
-from .app import EXIT_HELP, cli, warn
+from .app import EXIT_HELP, cli, starting_up, warn
 from .batch import each, expand_inputs, plan_outputs, refuse_overwrite, run_batch
 from .options import Finite, load_model, model_options, nonempty, parse_segments
 from .streams import load_input_image, read_input, write_output
@@ -66,22 +65,25 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, toleranc
     against itself (--effort); several are refined in batches of images of one size, each SVG
     written when its batch is done.
     """
-    from .. import api
-
     k = parse_segments(segments)
     items = expand_inputs(inputs)
     single = len(items) == 1 and items[0][1] is None
     if not single and output == "-":
         raise click.UsageError("several inputs need -o DIR")
     dests, notes = plan_outputs(items, output, ".svg", single)
-    model = load_model(model_name, device, seed)
+    with starting_up():
+        from .. import api, runtime
+
+        free = runtime.free_cores() if len(items) > 1 else 1  # before torch runs anything
+        runtime.set_threads(runtime.intra_op_threads(len(items), free=free))
+        model = load_model(model_name, device, seed)
     many = refine and len(items) > 1
     options = {"refine": refine, "effort": effort, "segments": k, "quality": quality,
                "max_paths": max_paths, "simplify_px": simplify_px, "parts": parts, "tolerance": tolerance,
                "colors": colors, "compile": compile_}
     if jobs is None:
         on_cpu = next(model.parameters()).device.type == "cpu"
-        jobs = min(os.cpu_count() or 1, MAX_AUTO_JOBS) if many and on_cpu and len(items) >= JOBS_MIN_IMAGES else 1
+        jobs = min(free, MAX_AUTO_JOBS) if many and on_cpu and len(items) >= JOBS_MIN_IMAGES else 1
     api.check_segments(model, k)  # before any file is read
     for note in notes:
         warn(note)
@@ -95,7 +97,8 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, toleranc
             return item, exc
 
     if jobs > 1 and len(items) > 1:
-        run_batch(ctx, items, _in_pool(model_name, jobs, device, seed, options, write), chunk=len(items))
+        threads = runtime.intra_op_threads(len(items), jobs, free)
+        run_batch(ctx, items, _in_pool(model_name, jobs, threads, device, seed, options, write), chunk=len(items))
     else:
         run_batch(ctx, items, _in_process(model, options, write), chunk=VECTORIZE_CHUNK)
 
@@ -125,8 +128,8 @@ def _in_process(model, options, write):
     return work
 
 
-def _in_pool(model_name, jobs, device, seed, options, write):
-    """``vectorize``'s work on all inputs at once, in chunks over ``jobs`` worker processes."""
+def _in_pool(model_name, jobs, threads, device, seed, options, write):
+    """``vectorize``'s work on all inputs at once, in chunks over ``jobs`` worker processes of ``threads`` threads."""
     from .. import parallel
 
     def work(group):
@@ -140,7 +143,8 @@ def _in_pool(model_name, jobs, device, seed, options, write):
                     names.append([item for item, _ in good])  # descriptor server that Ctrl-C interrupts
                     yield [img.permute(1, 2, 0).numpy() for _, img in good]
 
-        for vecs in parallel.vectorize_chunks(chunks(), model_name, jobs=jobs, device=device, seed=seed, **options):
+        for vecs in parallel.vectorize_chunks(chunks(), model_name, jobs=jobs, threads=threads, device=device,
+                                              seed=seed, **options):
             yield from bad
             bad.clear()
             for item, vec in zip(names.popleft(), vecs):

@@ -20,12 +20,15 @@ def model_options(f):
 
 def load_model(name: str, device: str, seed: int, raster_ok: bool = False):
     """The model for a command, seeded; the ImageVAE baseline only where ``raster_ok``."""
-    from ..api import load_model as load
     from ..errors import ModelError
-    from ..runtime import seed_everything
+    from .app import starting_up
 
-    seed_everything(seed)
-    model = load(name, device)
+    with starting_up():
+        from ..api import load_model as load
+        from ..runtime import seed_everything
+
+        seed_everything(seed)
+        model = load(name, device)
     if model.raster_output and not raster_ok:
         raise ModelError(f"{name} is an ImageVAE baseline: it draws pixels, not paths (only `im2vec eval` takes it)")
     return model

@@ -1,8 +1,8 @@
 """Vector images and everything done to them that is not a tensor op: the ``VectorImage``
-types, the tensor bridge, SVG read/write (static and animated), cairosvg rasterisation,
+types, the tensor bridge, SVG read/write (static and animated), cairo rasterisation,
 overlap resolution and simplification."""
 
-from .cairo import contact_sheet, rasterize_svg
+from .cairo import contact_sheet, fill_vector, rasterize_svg
 from .image import VectorImage, VectorShape
 from .overlaps import resolve_overlaps, reverse_contour
 from .read import from_svg, parse_d
@@ -11,7 +11,7 @@ from .svg import animated_svg, contour_d, to_svg
 from .tensors import from_tensors, render_vector, to_tensors
 
 __all__ = [
-    "VectorImage", "VectorShape", "animated_svg", "contact_sheet", "contour_d", "from_svg", "from_tensors",
-    "parse_d", "rasterize_svg", "render_vector", "resolve_overlaps", "reverse_contour", "simplify",
+    "VectorImage", "VectorShape", "animated_svg", "contact_sheet", "contour_d", "fill_vector", "from_svg",
+    "from_tensors", "parse_d", "rasterize_svg", "render_vector", "resolve_overlaps", "reverse_contour", "simplify",
     "simplify_contour", "to_svg", "to_tensors",
 ]

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import skia
-from .cairo import rasterize_svg
+from .cairo import fill_vector
 from .fit import fit_rings
 from .image import VectorImage, VectorShape
 from .simplify import simplify_contour
@@ -62,7 +62,7 @@ def shape_coverage(shape: VectorShape, width: int, height: int, scale: float = 1
     """``(H, W)`` in [0, 1]: how much of each pixel of a ``width x height`` grid the shape covers
     (cairo, under the shape's fill rule), its pixel frame multiplied by ``scale``."""
     ink = VectorImage(width / scale, height / scale, [VectorShape(shape.contours, (0.0, 0.0, 0.0), shape.fill_rule)])
-    return 1 - rasterize_svg(ink.to_svg(3), width, height).mean(-1)
+    return 1 - fill_vector(ink, width, height).mean(-1)
 
 
 def correct(coverage: np.ndarray, alpha: np.ndarray, min_width: int = 1) -> np.ndarray:
