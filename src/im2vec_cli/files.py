@@ -6,9 +6,11 @@ Images are returned as ``(3, H, W)`` float tensors in [0, 1] on a white backgrou
 
 from __future__ import annotations
 
+import errno
 import io
 import os
 import secrets
+import stat
 import warnings
 from pathlib import Path
 
@@ -26,9 +28,31 @@ NAME_MAX = 255  # bytes in a file name (Linux, macOS, Windows)
 
 def atomic_write(path: str | os.PathLike, data: bytes | str, *, durable: bool = True) -> None:
     """Write ``data`` to ``path`` through a temporary file and a rename, so that a crash
-    never leaves a partial file behind. ``durable=False`` skips the fsync (bulk datasets)."""
+    never leaves a partial file behind. ``durable=False`` skips the fsync (bulk datasets).
+
+    Only a regular file (or nothing) is replaced, keeping its mode; through a link to one,
+    the file it points to is (the link stays). A character device or a FIFO (``/dev/null``,
+    ``/dev/stdout``, a named pipe) is written as a stream. Anything else (a folder, a socket,
+    a block device, a broken link) raises ``OSError`` naming it and is left as it was."""
     path = Path(path)
     raw = data.encode("utf-8") if isinstance(data, str) else data
+    mode = None
+    try:
+        st = os.stat(path)  # through links
+    except FileNotFoundError:
+        if os.path.lexists(path):
+            raise OSError(errno.ENOENT, "a broken link: not replaced", str(path)) from None
+    else:
+        if stat.S_ISCHR(st.st_mode) or stat.S_ISFIFO(st.st_mode):
+            with open(path, "wb") as f:
+                f.write(raw)
+            return
+        if not stat.S_ISREG(st.st_mode):
+            what = "a folder" if stat.S_ISDIR(st.st_mode) else "not a regular file, a device or a FIFO"
+            raise OSError(errno.EEXIST, f"{what}: not replaced", str(path))
+        mode = stat.S_IMODE(st.st_mode)
+        if path.is_symlink():
+            path = Path(os.path.realpath(path))
     directory = path.parent if str(path.parent) else Path(".")
     # ".NAME.XXXXXXXX.tmp": keep the temp name within NAME_MAX whatever the target's length
     stem = os.fsdecode(os.fsencode(path.name)[: NAME_MAX - 16])
@@ -43,6 +67,8 @@ def atomic_write(path: str | os.PathLike, data: bytes | str, *, durable: bool = 
                 break
             except FileExistsError:
                 tmp = None
+        if mode is not None:
+            os.chmod(tmp, mode)  # the file it replaces keeps its mode
         with os.fdopen(fd, "wb") as f:
             f.write(raw)
             if durable:
