@@ -112,7 +112,7 @@ def measure(cmds: dict, rounds: int, busy: bool) -> dict[str, dict]:
                 "mem": mem[k]} for k, v in times.items()}
 
 
-def table(results: dict[str, dict], rounds: int) -> str:
+def table(results: dict[str, dict]) -> str:
     lines = ["| command | quiet: median s | quiet: x import torch | busy: median s | busy: x import torch | "
              "peak MiB |", "|---|---|---|---|---|---|"]
     for label in results["quiet"]:
@@ -177,7 +177,7 @@ def main():
             f"Written by bench/cli.py ({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, "
             f"{os.cpu_count()} CPU cores, {args.rounds} paired rounds per condition; busy: a `yes` loop holds one "
             f"core). Wall time of the whole process, and its median ratio to `python -c \"import torch\"` in the "
-            f"same round.\n\n{table(results, args.rounds)}\n\n" + "".join(f"- {n}\n" for n in notes)
+            f"same round.\n\n{table(results)}\n\n" + "".join(f"- {n}\n" for n in notes)
             + f"\nWhat a default `vectorize` imports (`python -X importtime`, self time summed by top-level package; "
             f"packages under 5 ms left out):\n\n{imports}\n")
     print(text)

@@ -116,7 +116,7 @@ def test_fill_vector_draws_what_cairosvg_draws(fallback, monkeypatch):
     and 2x, under both rules, in colour, off the canvas, empty; and through cairosvg itself when
     libcairo cannot be loaded directly."""
     if fallback:
-        monkeypatch.setattr(cairo, "_lib", [None])
+        monkeypatch.setattr(cairo, "_cairo", lambda: None)
     elif cairo._cairo() is None:
         pytest.skip("libcairo is not loadable through ctypes here")
     for vec in _pictures():

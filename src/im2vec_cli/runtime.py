@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import random
 import sys
+import time
 
 import numpy as np
 import torch
@@ -47,8 +48,6 @@ def free_cores(samples: int = 3, interval: float = 0.01) -> int:
     running now (``/proc/loadavg``'s count of runnable tasks, which includes this process;
     the fewest of ``samples`` readings ``interval`` s apart, so that a task passing through
     does not count; elsewhere the one-minute load average)."""
-    import time
-
     cores = cpu_cores()
     try:
         running = []

@@ -71,12 +71,11 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, toleranc
     if not single and output == "-":
         raise click.UsageError("several inputs need -o DIR")
     dests, notes = plan_outputs(items, output, ".svg", single)
-    with starting_up():
+    with starting_up():  # (load_model pauses the collector too)
         from .. import api, runtime
-
-        free = runtime.free_cores() if len(items) > 1 else 1  # before torch runs anything
-        runtime.set_threads(runtime.intra_op_threads(len(items), free=free))
-        model = load_model(model_name, device, seed)
+    free = runtime.free_cores() if len(items) > 1 else 1  # before torch runs anything
+    runtime.set_threads(runtime.intra_op_threads(len(items), free=free))
+    model = load_model(model_name, device, seed)
     many = refine and len(items) > 1
     options = {"refine": refine, "effort": effort, "segments": k, "quality": quality,
                "max_paths": max_paths, "simplify_px": simplify_px, "parts": parts, "tolerance": tolerance,

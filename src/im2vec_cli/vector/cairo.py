@@ -11,44 +11,43 @@ whose import parses cairo's C headers at every start (0.3-0.5 s, a fifth of a on
 from __future__ import annotations
 
 import ctypes
+import functools
 import math
 import sys
 
 import numpy as np
 
 from .image import VectorImage
-from .svg import _fmt, _hex
+from .svg import hex_color, number_text
 
 LIBCAIRO = ("libcairo.so.2", "libcairo.2.dylib", "libcairo-2.dll")  # the names cairocffi loads
-_lib: list = []  # [the loaded library or None], once per process
 
 
+@functools.cache
 def _cairo():
-    """libcairo through ctypes with the signatures used here, or ``None``."""
-    if not _lib:
-        lib = None
-        for name in LIBCAIRO:
-            try:
-                lib = ctypes.CDLL(name)
-                break
-            except OSError:
-                continue
-        if lib is not None:
-            vp, dbl, i32 = ctypes.c_void_p, ctypes.c_double, ctypes.c_int
-            for name, res, args in (
-                ("cairo_image_surface_create", vp, [i32, i32, i32]), ("cairo_create", vp, [vp]),
-                ("cairo_scale", None, [vp, dbl, dbl]), ("cairo_move_to", None, [vp, dbl, dbl]),
-                ("cairo_curve_to", None, [vp] + [dbl] * 6), ("cairo_close_path", None, [vp]),
-                ("cairo_set_fill_rule", None, [vp, i32]), ("cairo_set_source_rgba", None, [vp] + [dbl] * 4),
-                ("cairo_fill", None, [vp]), ("cairo_surface_flush", None, [vp]),
-                ("cairo_image_surface_get_data", ctypes.POINTER(ctypes.c_ubyte), [vp]),
-                ("cairo_image_surface_get_stride", i32, [vp]), ("cairo_status", i32, [vp]),
-                ("cairo_destroy", None, [vp]), ("cairo_surface_destroy", None, [vp]),
-            ):
-                fn = getattr(lib, name)
-                fn.restype, fn.argtypes = res, args
-        _lib.append(lib)
-    return _lib[0]
+    """libcairo through ctypes with the signatures used here (once per process), or ``None``."""
+    for name in LIBCAIRO:
+        try:
+            lib = ctypes.CDLL(name)
+            break
+        except OSError:
+            continue
+    else:
+        return None
+    vp, dbl, i32 = ctypes.c_void_p, ctypes.c_double, ctypes.c_int
+    for name, res, args in (
+        ("cairo_image_surface_create", vp, [i32, i32, i32]), ("cairo_create", vp, [vp]),
+        ("cairo_scale", None, [vp, dbl, dbl]), ("cairo_move_to", None, [vp, dbl, dbl]),
+        ("cairo_curve_to", None, [vp] + [dbl] * 6), ("cairo_close_path", None, [vp]),
+        ("cairo_set_fill_rule", None, [vp, i32]), ("cairo_set_source_rgba", None, [vp] + [dbl] * 4),
+        ("cairo_fill", None, [vp]), ("cairo_surface_flush", None, [vp]),
+        ("cairo_image_surface_get_data", ctypes.POINTER(ctypes.c_ubyte), [vp]),
+        ("cairo_image_surface_get_stride", i32, [vp]), ("cairo_status", i32, [vp]),
+        ("cairo_destroy", None, [vp]), ("cairo_surface_destroy", None, [vp]),
+    ):
+        fn = getattr(lib, name)
+        fn.restype, fn.argtypes = res, args
+    return lib
 
 
 def fill_vector(image: VectorImage, width: int, height: int, decimals: int = 3) -> np.ndarray:
@@ -56,7 +55,7 @@ def fill_vector(image: VectorImage, width: int, height: int, decimals: int = 3) 
     cairosvg: each shape's contours filled under its rule, back to front, over white, its
     coordinates rounded as the SVG text writes them. ``(H, W, 3)`` float64 in [0, 1]."""
     lib = _cairo()
-    vw, vh = float(_fmt(image.width, decimals)), float(_fmt(image.height, decimals))
+    vw, vh = float(number_text(image.width, decimals)), float(number_text(image.height, decimals))
     sx, sy = (width / vw, height / vh) if vw > 0 and vh > 0 else (0.0, 1.0)
     if lib is None or sx != sy or width < 1 or height < 1:  # (a letterboxed viewBox: cairosvg's business)
         return rasterize_svg(image.to_svg(decimals), width, height)
@@ -70,16 +69,16 @@ def fill_vector(image: VectorImage, width: int, height: int, decimals: int = 3) 
         for shape in image.shapes:
             if not shape.contours:
                 continue
-            for c in shape.contours:
-                q = [float(_fmt(v, decimals)) for v in np.asarray(c, dtype=np.float64).ravel().tolist()]
-                n = len(q) // 2
-                lib.cairo_move_to(cr, q[0], q[1])
+            for c in shape.contours:  # as svg.contour_d writes it: M p0 C p1 p2 p3 ... Z
+                q = [(float(number_text(x, decimals)), float(number_text(y, decimals)))
+                     for x, y in np.asarray(c, dtype=np.float64).tolist()]
+                n = len(q)
+                lib.cairo_move_to(cr, *q[0])
                 for k in range(n // 3):
-                    e = 2 * ((3 * k + 3) % n)
-                    lib.cairo_curve_to(cr, *q[6 * k + 2 : 6 * k + 6], q[e], q[e + 1])
+                    lib.cairo_curve_to(cr, *q[3 * k + 1], *q[3 * k + 2], *q[(3 * k + 3) % n])
                 lib.cairo_close_path(cr)
             lib.cairo_set_fill_rule(cr, 1 if shape.fill_rule == "evenodd" else 0)  # EVEN_ODD or WINDING
-            rgb = bytes.fromhex(_hex(shape.color)[1:])
+            rgb = bytes.fromhex(hex_color(shape.color)[1:])
             lib.cairo_set_source_rgba(cr, rgb[0] / 255, rgb[1] / 255, rgb[2] / 255, 1.0)
             lib.cairo_fill(cr)
         lib.cairo_surface_flush(surface)

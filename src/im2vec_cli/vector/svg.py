@@ -13,14 +13,16 @@ import svgwrite
 from .image import VectorImage
 
 
-def _fmt(v: float, decimals: int) -> str:
+def number_text(v: float, decimals: int) -> str:
+    """A coordinate as the SVG text writes it: ``decimals`` places, trailing zeros dropped."""
     s = f"{v:.{decimals}f}"
     if "." in s:
         s = s.rstrip("0").rstrip(".")
     return "0" if s in ("-0", "") else s
 
 
-def _hex(color: Sequence[float]) -> str:
+def hex_color(color: Sequence[float]) -> str:
+    """``#rrggbb`` of an RGB colour in [0, 1] (clamped)."""
     r, g, b = (int(round(min(1.0, max(0.0, float(c))) * 255)) for c in color)
     return f"#{r:02x}{g:02x}{b:02x}"
 
@@ -28,7 +30,7 @@ def _hex(color: Sequence[float]) -> str:
 def contour_d(points: np.ndarray, decimals: int = 2) -> str:
     """Path data ``M x y C ... Z`` of one closed cubic contour ``(3S, 2)``."""
     n = len(points)
-    xy = [f"{_fmt(x, decimals)} {_fmt(y, decimals)}" for x, y in np.asarray(points, dtype=np.float64).tolist()]
+    xy = [f"{number_text(x, decimals)} {number_text(y, decimals)}" for x, y in np.asarray(points, dtype=np.float64).tolist()]
     parts = [f"M {xy[0]}"]
     for s in range(n // 3):
         parts.append(f"C {xy[3 * s + 1]} {xy[3 * s + 2]} {xy[(3 * s + 3) % n]}")
@@ -40,13 +42,13 @@ def to_svg(image: VectorImage, decimals: int = 2) -> str:
     """SVG text: one ``<path>`` per shape, back to front, each contour a subpath."""
     w, h = image.width, image.height
     # debug=False: no per-attribute validation (the values are ours and well-formed; 5x faster)
-    dwg = svgwrite.Drawing(size=(_fmt(w, decimals), _fmt(h, decimals)), profile="full", debug=False)
-    dwg["viewBox"] = f"0 0 {_fmt(w, decimals)} {_fmt(h, decimals)}"
+    dwg = svgwrite.Drawing(size=(number_text(w, decimals), number_text(h, decimals)), profile="full", debug=False)
+    dwg["viewBox"] = f"0 0 {number_text(w, decimals)} {number_text(h, decimals)}"
     for shape in image.shapes:
         if not shape.contours:
             continue
         d = " ".join(contour_d(c, decimals) for c in shape.contours)
-        dwg.add(dwg.path(d=d, fill=_hex(shape.color), fill_rule=shape.fill_rule, stroke="none"))
+        dwg.add(dwg.path(d=d, fill=hex_color(shape.color), fill_rule=shape.fill_rule, stroke="none"))
     return dwg.tostring()
 
 
