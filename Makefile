@@ -4,7 +4,7 @@ DATA ?= data
 PIP ?= .venv/bin/pip
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: install test test-slow fuzz lint bench bench-cli bench-vectorize bench-outlines bench-folder results demo data-fonts data-mnist data-emoji data-icons clean
+.PHONY: install test test-slow fuzz lint bench bench-cli bench-safety bench-vectorize bench-outlines bench-folder results demo data-fonts data-mnist data-emoji data-icons clean
 
 install: .venv/.installed
 
@@ -35,6 +35,9 @@ bench: install
 # One picture start to finish against `import torch`, quiet and with one core busy, beside the commit
 # CLI_BEFORE (checked out in bench/.before-cli): docs/BENCHMARKS.md. About 10 minutes on 2 cores.
 CLI_BEFORE ?= 549518d
+bench-safety: install
+	$(PY) bench/safety.py --out docs/safety-run.md
+
 bench-cli: install
 	test -f /usr/share/fonts/truetype/freefont/FreeSerif.ttf || (apt-get update -q && apt-get install -y -q fonts-freefont-ttf)
 	test -d bench/.before-cli || git worktree add --detach bench/.before-cli $(CLI_BEFORE)

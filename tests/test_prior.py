@@ -278,7 +278,8 @@ def test_fit_prior_and_train_features_commands(tmp_path, model):
     before = iv.load_model(folder, "cpu")
     assert all(torch.equal(a, b) for a, b in zip(m.state_dict().values(), before.state_dict().values()))
     assert before.latent_prior is None  # -o left the model's own folder alone
-    res = CliRunner().invoke(cli, ["fit-prior", str(data), "--model", folder, "--components", "1000"])
+    res = CliRunner().invoke(cli, ["fit-prior", str(data), "--model", folder, "--components", "1000",
+                                   "-o", str(tmp_path / "many")])
     assert res.exit_code == 2 and "at most half" in res.output
     res = run(["train-features", str(data), "-o", str(tmp_path / "f"), "--size", "32", "--steps", "30"])
     assert res.exit_code == 0, res.output

@@ -22,6 +22,7 @@ the sample deformation on, or switched off at inference (``segments_sweep``)."""
 from __future__ import annotations
 
 import io
+from collections.abc import Callable
 from contextlib import contextmanager, nullcontext
 from pathlib import Path
 
@@ -39,21 +40,26 @@ from .vector import VectorImage, from_svg, rasterize_svg, to_svg
 
 
 def reconstruction_l2(
-    model: Im2Vec, files: list[Path], *, segments: int | str | None = None, batch: int = 64, outlines: bool = True
+    model: Im2Vec, files: list[Path], *, segments: int | str | None = None, batch: int = 64, outlines: bool = True,
+    on_skip: Callable[[str], None] | None = None,
 ) -> dict[str, float]:
-    """Mean and standard error of the per-image MSE over ``files`` (unreadable files skipped),
-    the mean paths and segments per image, and, for images with their true outline beside
-    them (``name.svg``, as the Fonts dataset has), IoU at 4x and the Chamfer distance (px);
-    outlines the SVG reader does not take are counted in ``outlines_unread``.
+    """Mean and standard error of the per-image MSE over ``files`` (unreadable files skipped,
+    counted in ``images_skipped`` and told to ``on_skip``), the mean paths and segments per
+    image, and, for images with their true outline beside them (``name.svg``, as the Fonts
+    dataset has), IoU at 4x and the Chamfer distance (px); outlines the SVG reader does not
+    take are counted in ``outlines_unread`` (and told to ``on_skip``).
     For the ImageVAE baseline: the MSE only. ``outlines=False`` skips the outline metrics."""
-    errs, paths, segs, ious, chamfers, unread = [], [], [], [], [], 0
+    skip = on_skip or (lambda msg: None)
+    errs, paths, segs, ious, chamfers, unread, skipped = [], [], [], [], [], 0, 0
     for i in range(0, len(files), batch):
         imgs, names = [], []
         for f in files[i : i + batch]:
             try:
                 imgs.append(load_image(f))  # (3, H, W)
                 names.append(Path(f))
-            except InputError:
+            except InputError as exc:
+                skipped += 1
+                skip(str(exc))
                 continue
         if not imgs:
             continue
@@ -69,8 +75,9 @@ def reconstruction_l2(
             if outlines and truth.is_file():
                 try:
                     ref = from_svg(truth.read_bytes())
-                except InputError:  # an outline the reader refuses (e.g. strokes, gradients)
+                except InputError as exc:  # an outline the reader refuses (e.g. gradients, clip paths)
                     unread += 1
+                    skip(f"the outline {truth}: {exc}")
                     continue
                 ious.append(outline_iou(svg_mask(to_svg(vec), 4 * w, 4 * h), svg_mask(to_svg(ref), 4 * w, 4 * h)))
                 chamfers.append(chamfer_px(vec, ref))
@@ -83,6 +90,8 @@ def reconstruction_l2(
         out.update(mean_stderr("outline_iou", ious), **mean_stderr("chamfer_px", chamfers), outlines=len(ious))
     if unread:
         out["outlines_unread"] = unread
+    if skipped:
+        out["images_skipped"] = skipped
     return out
 
 
@@ -131,9 +140,11 @@ def outline_iou(a: np.ndarray, b: np.ndarray) -> float:
     return 1.0 if union == 0 else float(np.logical_and(a, b).sum() / union)
 
 
-def eval_files(folder: str | Path, limit: int | None = None, seed: int = 0) -> list[Path]:
-    """Images under ``folder`` (``folder/test`` when present), a seeded subset of ``limit``."""
-    files = list_images(split_dir(folder, "test"))
+def eval_files(folder: str | Path, limit: int | None = None, seed: int = 0,
+               on_skip: Callable[[str], None] | None = None) -> list[Path]:
+    """Images under ``folder`` (``folder/test`` when present), a seeded subset of ``limit``;
+    names that are not regular files are told to ``on_skip`` (``list_images``)."""
+    files = list_images(split_dir(folder, "test"), on_skip)
     if limit is not None and len(files) > limit:
         g = torch.Generator().manual_seed(seed)
         files = [files[i] for i in sorted(torch.randperm(len(files), generator=g)[:limit].tolist())]

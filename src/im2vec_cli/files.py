@@ -11,7 +11,9 @@ import io
 import os
 import secrets
 import stat
+import tempfile
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -84,6 +86,51 @@ def atomic_write(path: str | os.PathLike, data: bytes | str, *, durable: bool = 
             except OSError:
                 pass
         raise
+
+
+def holds_files(path: str | os.PathLike) -> bool:
+    """Whether ``path`` exists as anything but an empty folder (an output there is someone's work)."""
+    path = Path(path)
+    if not os.path.lexists(path):
+        return False
+    if path.is_symlink() or not path.is_dir():
+        return True
+    return any(path.iterdir())
+
+
+def replace_folder(path: str | os.PathLike, write: Callable[[Path], object]) -> Path:
+    """Make the folder ``path`` whole from ``write(tmp)``: ``write`` fills a fresh sibling
+    folder, which then takes the place of whatever folder was at ``path`` (removed), so that a
+    crash or an exception leaves either the old folder or the new one, never a mix.
+
+    ``path`` must be a folder or nothing: a file, a link or anything else there raises
+    ``OSError`` naming it, left as it was."""
+    import shutil
+
+    path = Path(path)
+    if os.path.lexists(path) and (path.is_symlink() or not path.is_dir()):
+        raise OSError(errno.EEXIST, "not a folder: not replaced", str(path))
+    parent = path.parent if str(path.parent) else Path(".")
+    parent.mkdir(parents=True, exist_ok=True)
+    stem = os.fsdecode(os.fsencode(path.name)[: NAME_MAX - 16])
+    tmp = Path(tempfile.mkdtemp(prefix=f".{stem}.", suffix=".tmp", dir=parent))
+    old = None
+    try:
+        write(tmp)
+        if os.path.lexists(path):
+            old = Path(tempfile.mkdtemp(prefix=f".{stem}.", suffix=".old", dir=parent))
+            os.replace(path, old)  # onto the empty folder just made: atomic on POSIX
+        os.replace(tmp, path)
+    except BaseException:
+        if old is not None and not os.path.lexists(path):
+            os.replace(old, path)  # put the old folder back
+            old = None
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    finally:
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+    return path
 
 
 def _fsync_dir(directory: Path) -> None:

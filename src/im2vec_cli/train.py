@@ -7,6 +7,7 @@ Run directory layout::
     RUN/preview_<step>.png  input | reconstruction | reconstruction with control points
     RUN/model/            exported model (config.json + model.safetensors)
     RUN/train_config.json
+    RUN/latent_prior.*    the latent prior fitted when the run finished (for ``export``)
 
 ``train`` reads top to bottom: distributed set-up, the model, the splits, the ``TrainState``
 (fresh or resumed), then the loop of ``train_step`` and the periodic jobs (``log``,
@@ -41,6 +42,10 @@ from .model.vae import Im2Vec
 from .optim import Lookahead
 
 MAX_NONFINITE_IN_A_ROW = 20  # skipped steps before training stops with an error
+RUN_FILES = ("checkpoint.pt", "metrics.jsonl", "train_config.json", "latent_prior.json", "latent_prior.safetensors",
+             "model", "preview_*.png")  # what a run writes: a new run in its folder starts without them
+MIN_IMAGES = 2  # one to train on, one to validate
+PRIOR_MIN_IMAGES = 2  # training images a latent prior is fitted to (GaussianMixture needs two)
 VAL_IMAGES = 512  # validation images, spread over the folder (sorted by class or family)
 
 __all__ = ["TrainState", "evaluate_l2", "preview_grid", "schedule", "train", "TrainingError"]
@@ -140,6 +145,9 @@ def load_splits(data_dir: str | Path | None, val_dir: str | Path | None, model_c
         load = lambda d: load_folder(d, model_cfg.image_size, fit=model_cfg.fit,  # noqa: E731
                                      workers=train_cfg.workers, on_skip=on_skip)
         images, names = load(tr_dir)
+        if val_dir is None and len(images) < MIN_IMAGES:
+            raise DataError(f"{data_dir}: {len(images)} readable image{'s' * (len(images) != 1)}; training needs "
+                            f"at least {MIN_IMAGES} (one to train on, one to validate), or a --val folder")
         if val_dir is not None:
             train_x, val_x = images, load(val_dir)[0]
         else:
@@ -147,6 +155,8 @@ def load_splits(data_dir: str | Path | None, val_dir: str | Path | None, model_c
             train_x, val_x = images[tr], images[va]
     if len(train_x) == 0:
         raise DataError("no training images left after the validation split")
+    if len(val_x) == 0:
+        raise DataError(f"{val_dir}: no readable validation images")
     return train_x, val_x[:: max(1, len(val_x) // VAL_IMAGES)][:VAL_IMAGES]
 
 
@@ -287,6 +297,7 @@ def train(
     device: torch.device = torch.device("cpu"),
     val_dir: str | Path | None = None,
     resume: bool = False,
+    overwrite: bool = False,
     on_event: Callable[[dict], None] | None = None,
     images: torch.Tensor | None = None,
     epochs: float | None = None,
@@ -300,13 +311,15 @@ def train(
     ``(N, 3, S, S)``) bypasses the folder loading, for tests. ``epochs`` overrides
     ``train_cfg.steps`` by passes over the training images. ``init_state`` (a state dict of
     the same config) starts from trained weights with a fresh optimiser: fine-tuning.
+    A ``run_dir`` that holds a run is continued with ``resume`` or started over (its run
+    files removed, the folder's other files kept) with ``overwrite``; else it is refused.
     """
     emit = on_event or (lambda e: None)
     run_dir = Path(run_dir)
     device, rank, world = setup_distributed(device)
     main = rank == 0
     if main:
-        run_dir.mkdir(parents=True, exist_ok=True)
+        prepare_run_dir(run_dir, resume, overwrite, data_dir)
     model = _build(model_cfg, train_cfg.seed, device, init_state)  # first: a bad config fails before the data loads
     train_x, val_x = load_splits(data_dir, val_dir, model_cfg, train_cfg, images,
                                  lambda msg: emit({"event": "skip", "message": msg}) if main else None)
@@ -324,14 +337,42 @@ def train(
     _loop(state, ddp_model, train_x, val_x, model_cfg, train_cfg, run_dir, _Log(run_dir / "metrics.jsonl", emit, main),
           rank, world)
     if main:
-        emit({"event": "prior", "images": len(train_x)})
-        prior = fit_run_prior(state.exported, train_x, str(data_dir or ""), state.step, train_cfg.seed)
-        prior.save(run_dir)  # beside checkpoint.pt, for `export`
-        state.exported.latent_prior = prior
+        if len(train_x) >= PRIOR_MIN_IMAGES:
+            emit({"event": "prior", "images": len(train_x)})
+            prior = fit_run_prior(state.exported, train_x, str(data_dir or ""), state.step, train_cfg.seed)
+            prior.save(run_dir)  # beside checkpoint.pt, for `export`
+            state.exported.latent_prior = prior
+        else:
+            emit({"event": "no_prior", "images": len(train_x), "needed": PRIOR_MIN_IMAGES})
         save_pretrained(state.exported, run_dir / "model")
     if world > 1:
         dist.barrier()
     return run_dir / "model"
+
+
+def prepare_run_dir(run_dir: Path, resume: bool, overwrite: bool, data_dir: str | Path | None = None) -> None:
+    """Check ``run_dir`` before any work: ``resume`` needs a checkpoint; a run there is kept
+    unless ``overwrite`` (then its files go, so that old and new never mix)."""
+    import shutil
+
+    if resume and overwrite:
+        raise Im2VecError("resume continues a run and overwrite starts it over: give one of them")
+    if os.path.lexists(run_dir) and not run_dir.is_dir():
+        raise Im2VecError(f"{run_dir}: not a folder")
+    if data_dir is not None and Path(data_dir).resolve() in [run_dir.resolve(), *run_dir.resolve().parents]:
+        raise Im2VecError(f"{run_dir}: inside the training images' folder {data_dir} (its previews would become "
+                          "training images); give the run a folder outside it")
+    found = sorted(p for pattern in RUN_FILES for p in run_dir.glob(pattern)) if run_dir.is_dir() else []
+    if resume:
+        if not (run_dir / "checkpoint.pt").is_file():
+            raise Im2VecError(f"{run_dir}: no checkpoint.pt to resume from")
+    elif found and not overwrite:
+        raise Im2VecError(f"{run_dir}: holds a training run ({found[0].name}, ...); --resume continues it, "
+                          "--overwrite starts it over, --out names another folder")
+    elif found:
+        for p in found:
+            shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink()
+    run_dir.mkdir(parents=True, exist_ok=True)
 
 
 def fit_run_prior(model: torch.nn.Module, train_x: torch.Tensor, data: str, step: int, seed: int) -> LatentPrior:

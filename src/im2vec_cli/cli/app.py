@@ -40,8 +40,14 @@ def fail(ctx: click.Context, message: str):
     """Print ``Error: message`` (and the traceback with ``--debug``), exit 1."""
     if ctx.obj and ctx.obj.get("debug"):
         traceback.print_exc()
-    click.echo(f"Error: {message}", err=True)
+    click.echo(f"Error: {one_line(message)}", err=True)
     ctx.exit(1)
+
+
+def one_line(message: str) -> str:
+    """``message`` with its control characters escaped (``\\n`` for a newline in a file name), so
+    that one error or warning stays one line."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in message)
 
 
 @contextlib.contextmanager
@@ -62,7 +68,7 @@ def starting_up():
 
 def warn(message: str) -> None:
     """One ``Warning:`` line on stderr."""
-    click.echo(f"Warning: {message}", err=True)
+    click.echo(f"Warning: {one_line(message)}", err=True)
 
 
 @click.group(cls=Im2VecGroup, context_settings={"help_option_names": ["-h", "--help"]}, epilog=EXIT_HELP)

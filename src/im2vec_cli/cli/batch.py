@@ -10,6 +10,7 @@ from pathlib import Path
 import click
 
 from ..errors import DataError, Im2VecError
+from .app import one_line, warn
 
 Item = tuple[str, "Path | None"]  # (input path or "-", the folder it was found in, or None)
 
@@ -27,7 +28,7 @@ class Report:
 
     def failure(self, message: str) -> None:
         self.failed += 1
-        click.echo(f"Error: {message}", err=True)
+        click.echo(f"Error: {one_line(message)}", err=True)
 
     @property
     def exit_code(self) -> int:
@@ -41,15 +42,21 @@ class Report:
 
 
 def expand_inputs(inputs: Iterable[str]) -> list[Item]:
-    """Files and folders (searched recursively for PNG/JPG) -> ``(path, folder or None)``."""
+    """Files and folders (searched recursively for PNG/JPG) -> ``(path, folder or None)``.
+
+    What a folder holds under an image name that is not a regular file (a FIFO, a device, a
+    broken link) is skipped with a warning; ``-`` (stdin) is an input only alone."""
     from ..data.folder import list_images
 
+    inputs = list(inputs)
+    if "-" in inputs and len(inputs) > 1:
+        raise click.UsageError("- (stdin) is one input on its own: give it alone, or give files")
     out: list[Item] = []
     for item in inputs:
         p = Path(item)
         if item != "-" and p.is_dir():
             try:
-                found = list_images(p)
+                found = list_images(p, on_skip=lambda msg: warn(f"skipped {msg}"))
             except DataError as exc:
                 raise Im2VecError(str(exc)) from None
             if not found:

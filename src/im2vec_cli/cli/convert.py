@@ -66,6 +66,8 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, toleranc
     written when its batch is done.
     """
     k = parse_segments(segments)
+    for note in _ignored_options(ctx):
+        warn(note)
     items = expand_inputs(inputs)
     single = len(items) == 1 and items[0][1] is None
     if not single and output == "-":
@@ -100,6 +102,30 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, toleranc
         run_batch(ctx, items, _in_pool(model_name, jobs, threads, device, seed, options, write), chunk=len(items))
     else:
         run_batch(ctx, items, _in_process(model, options, write), chunk=VECTORIZE_CHUNK)
+
+
+# option -> (when it acts, given the parameters; when it does not, why): an option given on the
+# command line that does nothing in the mode chosen gets a warning, not silence
+_APPLIES = {
+    "tolerance": (lambda p: p["refine"] and p["parts"] == "clean", "it shapes --parts clean with refinement"),
+    "colors": (lambda p: p["refine"] and p["parts"] == "clean", "it shapes --parts clean with refinement"),
+    "effort": (lambda p: p["refine"], "it sets how hard refinement works, and --no-refine skips it"),
+    "parts": (lambda p: p["refine"], "--no-refine writes the model's own paths"),
+    "compile_": (lambda p: p["refine"], "it compiles the refinement, and --no-refine skips it"),
+    "quality": (lambda p: p["segments"] == "auto", "it sets --segments auto's choice"),
+}
+
+
+def _ignored_options(ctx: click.Context) -> list[str]:
+    """One warning for each option given on the command line that does nothing with the others."""
+    from click.core import ParameterSource
+
+    notes = []
+    for name, (acts, why) in _APPLIES.items():
+        if ctx.get_parameter_source(name) == ParameterSource.COMMANDLINE and not acts(ctx.params):
+            flag = "--compile" if name == "compile_" else f"--{name}"
+            notes.append(f"{flag} does nothing here: {why}")
+    return notes
 
 
 def _load(group):

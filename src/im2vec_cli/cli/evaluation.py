@@ -105,8 +105,9 @@ def eval_cmd(data_dir, limit, train_dir, samples, pairs, segments, output, markd
         raise click.UsageError("--sweep: the ImageVAE baseline has no segments")
     k = parse_segments(segments)
     res = {"model": getattr(model, "name", model_name), "arch": model.config.arch}
-    files = eval_files(data_dir, limit, seed)
-    res.update(reconstruction_l2(model, files, segments=k))
+    skipped = lambda msg: warn(f"skipped {msg}")  # noqa: E731
+    files = eval_files(data_dir, limit, seed, on_skip=skipped)
+    res.update(reconstruction_l2(model, files, segments=k, on_skip=skipped))
     if train_dir:
         train, _ = load_folder(split_dir(train_dir, "train"), model.config.image_size, fit=model.config.fit,
                                on_skip=lambda msg: warn(f"skipped {msg}"))

@@ -16,7 +16,8 @@ PRIORS = ["auto", "fitted", "normal"]  # model.prior.PRIORS, spelled out so that
 
 @cli.command(epilog=EXIT_HELP)
 @click.option("--n", "count", type=click.IntRange(1, 10000), default=16, show_default=True, help="How many samples.")
-@click.option("-o", "--output", default="samples", show_default=True, callback=nonempty, help="Output folder.")
+@click.option("-o", "--output", default="samples", show_default=True, callback=nonempty,
+              help="Output folder (- with --n 1: the SVG to stdout).")
 @click.option("--segments", default=None, help="Cubic segments per path (default: the model's).")
 @click.option("--temperature", type=Finite(0), default=1.0, show_default=True,
               help="Scale of the prior's standard deviations (0: the fitted prior's component means).")
@@ -31,6 +32,7 @@ def sample(count, output, segments, temperature, prior, parts, model_name, devic
     """Decode N latents drawn from the prior (seeded) into SVGs, plus contact.png."""
     from .. import api
 
+    check_set_output(output, count)
     model = load_model(model_name, device, seed)
     k = parse_segments(segments)
     z = api.prior_latents(count, model, seed=seed, temperature=temperature, prior=prior)
@@ -42,11 +44,21 @@ DECODE_CHUNK = 256  # latents decoded at once: memory stays flat in --n
 CONTACT_MAX = 64  # images on a contact sheet (the first ones): its size stays bounded
 
 
+def check_set_output(output: str, count: int) -> None:
+    """Before any work: ``-o -`` (stdout) takes one SVG, so it is a usage error for more."""
+    if output == "-" and count != 1:
+        raise click.UsageError(f"-o -: stdout takes one SVG, and this writes {count}; give a folder")
+
+
 def write_set(output: str, stem: str, images, count: int) -> None:
     """``OUT/<stem>_<i>.svg`` for each of ``count`` images, written as they come, and
-    ``OUT/contact.png`` of the first ``CONTACT_MAX``."""
+    ``OUT/contact.png`` of the first ``CONTACT_MAX``; with ``-o -`` the one SVG to stdout."""
     from ..vector import contact_sheet
 
+    check_set_output(output, count)
+    if output == "-":
+        write_output("-", next(iter(images)).to_svg())
+        return
     out = make_folder(output)
     width = len(str(count - 1))
     first = []
@@ -110,6 +122,7 @@ def interpolate(a, b, steps, output, segments, animate, parts, model_name, devic
     from .. import api
     from ..vector import animated_svg
 
+    check_set_output(output, steps + 2)
     names = [f"frame_{i:0{len(str(steps + 1))}d}.svg" for i in range(steps + 2)] + ["contact.png", "morph.svg"]
     refuse_overwrite([Path(output) / n for n in names], [a, b])
     model = load_model(model_name, device, seed)

@@ -34,6 +34,22 @@ def _configs(config_file, model_opts: dict, train_opts: dict):
     return ModelConfig.from_dict(m), TrainConfig.from_dict(t), m
 
 
+def _model_output(output: str, overwrite: bool, model_name: str) -> bool:
+    """Whether -o is the model's own folder (updated in place, only with --overwrite); any other
+    -o is made whole, and one that holds files only with --overwrite. Checked before the work."""
+    from pathlib import Path
+
+    from ..model.pretrained import check_output_folder, resolve_model
+
+    source = resolve_model(model_name)
+    if Path(output).resolve() == source.resolve():
+        if not overwrite:
+            raise Im2VecError(f"{output}: is the model's own folder; --overwrite updates it in place")
+        return True
+    check_output_folder(output, overwrite, source)
+    return False
+
+
 class _Progress:
     """Training events -> a progress bar (or plain lines when stderr is not a terminal) and warnings."""
 
@@ -60,6 +76,9 @@ class _Progress:
             warn(f"step {e['step']}: loss or gradient not finite, update skipped ({e['in_a_row']} in a row)")
         elif kind == "prior":
             click.echo(f"fitting the latent prior to the {e['images']} training images' latents", err=True)
+        elif kind == "no_prior":
+            warn(f"no latent prior: {e['images']} training image (it needs {e['needed']}); "
+                 "`sample` draws from N(0, I)")
         elif kind == "val":
             click.echo(f"step {e['step']}: val pyramid L2 {e['val_pyramid_l2']:.5f}, MSE {e['val_mse']:.5f}", err=True)
 
@@ -89,13 +108,14 @@ class _Progress:
 @click.option("--seed", type=SEED, help="Random seed. [0]")
 @click.option("--workers", type=click.IntRange(1), help="Image loading threads. [2]")
 @click.option("--resume", is_flag=True, help="Continue exactly from RUN/checkpoint.pt.")
+@click.option("--overwrite", is_flag=True, help="Start over in a RUN folder that holds a run (its run files are removed).")
 @click.option("--init", "init_model", default=None, metavar="NAME|DIR",
               help="Fine-tune: start from this model's weights (a shipped name or a model folder), with a "
                    "fresh optimiser and schedule; the model options come from it, but --paths and --grouping "
                    "may change (new paths start as copies of the model's).")
 @device_option
 def train(data_dir, run_dir, val_dir, config_file, arch, size, paths, latent, grouping, batch, steps, epochs, lr,
-          beta, seed, workers, resume, init_model, device):
+          beta, seed, workers, resume, overwrite, init_model, device):
     """Train an Im2Vec model on a folder of images (PNG/JPG, searched recursively).
 
     A folder made by `im2vec data` (with train/ and val/) uses its own split. Unreadable
@@ -134,6 +154,7 @@ def train(data_dir, run_dir, val_dir, config_file, arch, size, paths, latent, gr
     report = _Progress(dev)
     try:
         out = run_train(data_dir, run_dir, model_cfg, train_cfg, device=dev, val_dir=val_dir, resume=resume,
+                        overwrite=overwrite,
                         on_event=report, epochs=epochs, init_state=init_state)
     finally:
         report.close()
@@ -143,12 +164,14 @@ def train(data_dir, run_dir, val_dir, config_file, arch, size, paths, latent, gr
 
 @cli.command("train-aux", epilog=EXIT_HELP)
 @click.argument("data_dir", type=click.Path(file_okay=False), callback=nonempty)
-@click.option("-o", "--output", required=True, callback=nonempty, help="Folder for the model with its segment predictor (may be the input's).")
+@click.option("-o", "--output", required=True, callback=nonempty,
+              help="Folder for the model with its segment predictor (the input's own: updated in place, with --overwrite).")
+@click.option("--overwrite", is_flag=True, help="Replace -o whole when it holds files (or update the model's own folder).")
 @click.option("--images", type=click.IntRange(1), default=2048, show_default=True,
               help="Training images to measure (a seeded subset).")
 @click.option("--steps", type=click.IntRange(1), default=3000, show_default=True, help="Optimiser steps of the fit.")
 @model_options
-def train_aux(data_dir, output, images, steps, model_name, device, seed):
+def train_aux(data_dir, output, overwrite, images, steps, model_name, device, seed):
     """Train the segment-count predictor (paper sec. 3.3) of a trained model.
 
     Sweeps k for every path of DATA_DIR's images, fits loss(k) = a*exp(-b*k) + c per path
@@ -160,10 +183,11 @@ def train_aux(data_dir, output, images, steps, model_name, device, seed):
     import torch
 
     from ..data.folder import load_folder, split_dir
+    from ..files import atomic_write, replace_folder
     from ..model.pretrained import save_pretrained, stored_half
     from ..train_aux import AuxSettings, train_segment_predictor
-    from .streams import write_output
 
+    in_place = _model_output(output, overwrite, model_name)
     model = load_model(model_name, device, seed)
     data, _ = load_folder(split_dir(data_dir, "train"), model.config.image_size, fit=model.config.fit,
                           on_skip=lambda m: warn(f"skipped {m}"))
@@ -173,8 +197,13 @@ def train_aux(data_dir, output, images, steps, model_name, device, seed):
     out, report = train_segment_predictor(model, x, AuxSettings(steps=steps, seed=seed),
                                           on_step=lambda e: click.echo(f"step {e['step']}: fit {e['fit']:.4f}, "
                                                                        f"held-out {e['val_fit']:.4f}", err=True))
-    save_pretrained(out, output, half=stored_half(model_name))  # as stored: the VAE weights stay bit-identical
-    write_output(Path(output) / "segments.json", json.dumps(report, indent=1) + "\n")
+    half = stored_half(model_name)
+
+    def write(folder: Path) -> None:
+        save_pretrained(out, folder, half=half)  # as stored: the VAE weights stay bit-identical
+        atomic_write(Path(folder) / "segments.json", json.dumps(report, indent=1) + "\n")
+
+    write(Path(output)) if in_place else replace_folder(output, write)
     click.echo(f"held-out fit (log MSE) {report['val_fit_log_mse']:.4f}; model written to {output}", err=True)
 
 
@@ -182,49 +211,50 @@ def train_aux(data_dir, output, images, steps, model_name, device, seed):
 @click.argument("run_dir", type=click.Path(file_okay=False), callback=nonempty)
 @click.option("-o", "--output", required=True, callback=nonempty, help="Model folder to write (config.json + model.safetensors).")
 @click.option("--half", is_flag=True, help="Store the weights in fp16 (half the size).")
-def export(run_dir, output, half):
+@click.option("--overwrite", is_flag=True, help="Replace -o whole when it holds files (its old card and metrics go too).")
+def export(run_dir, output, half, overwrite):
     """Export the model of a training run's latest checkpoint (e.g. after Ctrl-C)."""
     from ..model.pretrained import export_checkpoint
 
-    out, step = export_checkpoint(run_dir, output, half=half)
+    out, step = export_checkpoint(run_dir, output, half=half, overwrite=overwrite)
     click.echo(f"exported step {step} to {out}", err=True)
 
 
 @cli.command("fit-prior", epilog=EXIT_HELP)
 @click.argument("data_dir", type=click.Path(file_okay=False), callback=nonempty)
-@click.option("-o", "--output", default=None, callback=nonempty,
-              help="Write the model with its prior to this folder (default: add the prior to the model's own folder).")
+@click.option("-o", "--output", required=True, callback=nonempty,
+              help="Write the model with its prior to this folder (the model's own: its prior replaced, with --overwrite).")
+@click.option("--overwrite", is_flag=True, help="Replace -o whole when it holds files (or the prior of the model's own folder).")
 @click.option("--components", type=click.IntRange(1, 1000), default=10, show_default=True,
               help="Gaussians of the mixture (1: one full-covariance Gaussian).")
 @model_options
-def fit_prior_cmd(data_dir, output, components, model_name, device, seed):
+def fit_prior_cmd(data_dir, output, overwrite, components, model_name, device, seed):
     """Fit the latent density `sample` draws from to a trained model's training images.
 
     Encodes DATA_DIR's images (DATA_DIR/train when it exists) and fits a full-covariance
-    Gaussian mixture to their posterior means; writes latent_prior.safetensors and
-    latent_prior.json into the model folder. `train` does this when it finishes.
+    Gaussian mixture to their posterior means; writes the model with latent_prior.safetensors
+    and latent_prior.json to -o. `train` does this when it finishes.
     """
-    from pathlib import Path
-
     from ..data.folder import load_folder, split_dir
-    from ..model.pretrained import resolve_model, save_pretrained, stored_half
+    from ..files import replace_folder
+    from ..model.pretrained import save_pretrained, stored_half
     from ..model.prior import fit_prior, posterior_means
 
+    in_place = _model_output(output, overwrite, model_name)
     model = load_model(model_name, device, seed, raster_ok=True)
-    folder = Path(output) if output else resolve_model(model_name)
     data, _ = load_folder(split_dir(data_dir, "train"), model.config.image_size, fit=model.config.fit,
                           on_skip=lambda m: warn(f"skipped {m}"))
     if components > max(1, len(data) // 2):
         raise click.UsageError(f"--components {components}: at most half the {len(data)} images")
     click.echo(f"encoding {len(data)} images", err=True)
     prior = fit_prior(posterior_means(model, data), components, seed=seed, data=str(data_dir))
-    if output:
-        model.latent_prior = prior
-        save_pretrained(model, folder, half=stored_half(model_name))  # as stored: the weights stay bit-identical
+    if in_place:
+        prior.save(output)
     else:
-        prior.save(folder)
+        model.latent_prior, half = prior, stored_half(model_name)  # as stored: the weights stay bit-identical
+        replace_folder(output, lambda folder: save_pretrained(model, folder, half=half))
     click.echo(f"mean log-likelihood {prior.config.log_likelihood:.1f} nats per image; "
-               f"prior written to {folder}", err=True)
+               f"prior written to {output}", err=True)
 
 
 @cli.command("train-features", epilog=EXIT_HELP)

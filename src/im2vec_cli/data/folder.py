@@ -20,12 +20,22 @@ from ..frame import fit_square
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 
 
-def list_images(root: str | Path) -> list[Path]:
-    """Every PNG/JPG file under ``root`` (searched recursively), sorted."""
+def list_images(root: str | Path, on_skip: Callable[[str], None] | None = None) -> list[Path]:
+    """Every PNG/JPG file under ``root`` (searched recursively), sorted. A name with an image
+    suffix that is not a regular file (a FIFO, a device, a socket, a broken link) is left out
+    and told to ``on_skip``; folders are searched."""
     root = Path(root)
     if not root.is_dir():
         raise DataError(f"{root}: not a directory")
-    return sorted(p for p in root.rglob("*") if p.suffix.lower() in IMAGE_SUFFIXES and p.is_file())
+    found = []
+    for p in sorted(root.rglob("*")):
+        if p.suffix.lower() not in IMAGE_SUFFIXES or p.is_dir():
+            continue
+        if p.is_file():
+            found.append(p)
+        elif on_skip is not None:
+            on_skip(f"{p}: {'a broken link' if p.is_symlink() and not p.exists() else 'not a regular file'}")
+    return found
 
 
 def load_folder(
@@ -39,7 +49,7 @@ def load_folder(
     Returns:
         ``(N, 3, size, size)`` uint8 and the relative file names.
     """
-    files = list_images(root)
+    files = list_images(root, on_skip)
     if not files:
         raise DataError(f"{root}: no images (.png, .jpg) found")
 

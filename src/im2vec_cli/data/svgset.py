@@ -35,9 +35,14 @@ def build_svg_set(out: str | Path, src: str | Path, *, size: int = 128, colors: 
     files = sorted(src.rglob("*.svg")) if src.is_dir() else []
     if not files:
         raise DataError(f"{src}: no .svg files found")
-    rows, skipped = [], []
-    for f in progress(files) if progress else files:
+    names = {}  # output name -> source: checked whole before anything is written
+    for f in files:
         name = str(f.relative_to(src).with_suffix("")).replace("/", "__")
+        if name in names:
+            raise DataError(f"{names[name]} and {f}: both would be written as {name}.svg; rename one")
+        names[name] = f
+    rows, skipped = [], []
+    for name, f in progress(list(names.items())) if progress else names.items():
         split = split_of(name)
         try:
             data = f.read_bytes()

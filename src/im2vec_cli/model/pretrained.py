@@ -13,7 +13,7 @@ import torch
 from ..checkpoint import load_checkpoint
 from ..config import ModelConfig
 from ..errors import ModelError
-from ..files import atomic_write
+from ..files import atomic_write, holds_files, replace_folder
 from . import build_model
 from .prior import LatentPrior
 
@@ -52,12 +52,18 @@ def save_pretrained(model: torch.nn.Module, directory: str | Path, *, half: bool
 
 
 def resolve_model(name_or_dir: str | os.PathLike) -> Path:
-    """A model folder: an explicit directory, then ``$IM2VEC_MODELS/NAME``, then the
-    repository's ``models/NAME``, then the package's bundled ``models/NAME``."""
+    """A model folder, looked up in this order:
+
+    1. a path (it names a folder: ``runs/x/model``, ``./fonts``, ``/abs``): that folder;
+    2. a bare name (``fonts``): a folder of that name here only when it holds ``config.json``,
+       then ``$IM2VEC_MODELS/NAME``, the repository's ``models/NAME``, the package's
+       bundled ``models/NAME``; so a folder here that is not a model never hides a shipped one.
+    """
     p = Path(name_or_dir)
-    if p.is_dir():
-        return p
     name = str(name_or_dir)
+    bare = os.sep not in name and (os.altsep or os.sep) not in name and name not in (".", "..")
+    if p.is_dir() and (not bare or (p / "config.json").is_file()):
+        return p
     candidates = []
     if os.environ.get("IM2VEC_MODELS"):
         env = Path(os.environ["IM2VEC_MODELS"])
@@ -68,6 +74,8 @@ def resolve_model(name_or_dir: str | os.PathLike) -> Path:
     for c in candidates:
         if (c / "config.json").is_file():
             return c
+    if p.is_dir():
+        return p  # not a model: its missing config.json is the error to show
     known = sorted({d.name for base in (REPO_MODELS, PACKAGE_MODELS) if base.is_dir() for d in base.iterdir()
                     if (d / "config.json").is_file()})
     raise ModelError(f"unknown model {name!r} (not a directory; shipped models: {', '.join(known) or 'none'})")
@@ -120,13 +128,18 @@ def stored_half(name_or_dir: str | os.PathLike) -> bool:
         return any(f.get_slice(k).get_dtype() == "F16" for k in f.keys())
 
 
-def export_checkpoint(run_dir: str | Path, out_dir: str | Path, *, half: bool = False) -> tuple[Path, int]:
+def export_checkpoint(run_dir: str | Path, out_dir: str | Path, *, half: bool = False,
+                      overwrite: bool = False) -> tuple[Path, int]:
     """Export the model of a run's ``checkpoint.pt`` as a ``from_pretrained`` folder, with the
     run's latent prior when it was fitted to this checkpoint's weights (a run stopped early has
     none: ``im2vec fit-prior`` fits one).
 
+    ``out_dir`` is made whole (``files.replace_folder``): a folder that holds files is replaced
+    only with ``overwrite``, and never one that holds the run.
+
     Returns the folder and the step the checkpoint was taken at.
     """
+    check_output_folder(out_dir, overwrite, run_dir)
     state = load_checkpoint(Path(run_dir) / "checkpoint.pt")
     model = build_model(ModelConfig.from_dict(state["model_config"]))
     if state.get("ema") is not None:  # a run with TrainConfig.ema exports the averaged weights
@@ -140,7 +153,20 @@ def export_checkpoint(run_dir: str | Path, out_dir: str | Path, *, half: bool = 
     prior = LatentPrior.load(run_dir)  # fitted by `train` when it finished, to the weights of its last step
     if prior is not None and prior.config.step == int(state["step"]):
         model.latent_prior = prior
-    return save_pretrained(model, out_dir, half=half), int(state["step"])
+    return replace_folder(out_dir, lambda tmp: save_pretrained(model, tmp, half=half)), int(state["step"])
+
+
+def check_output_folder(out_dir: str | Path, overwrite: bool, *inputs: str | Path) -> None:
+    """Refuse to make ``out_dir`` anew when it holds files (unless ``overwrite``) or holds, or
+    is, one of ``inputs`` (a run or model folder the work reads)."""
+    out = Path(out_dir).resolve()
+    for src in inputs:
+        src = Path(src).resolve()
+        if src == out or out in src.parents:
+            what = "is" if src == out else f"holds {src},"
+            raise ModelError(f"{out_dir}: {what} the folder this reads; write to another folder")
+    if holds_files(out_dir) and not overwrite:
+        raise ModelError(f"{out_dir}: holds files; --overwrite replaces the folder whole")
 
 
 GROWABLE = ("paths", "grouping")  # ModelConfig keys a fine-tune (`train --init`) may change

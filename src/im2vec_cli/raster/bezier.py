@@ -133,6 +133,25 @@ def subdivide_to(points: torch.Tensor, segments: int) -> torch.Tensor:
     return torch.cat([s[:3] for s in segs], 0)
 
 
+def restrict(ctrl: torch.Tensor, t0: torch.Tensor, t1: torch.Tensor) -> torch.Tensor:
+    """The pieces of cubic segments over ``[t0, t1]``, exactly (blossoming: the piece's control
+    points are the blossom values ``f(t0,t0,t0), f(t0,t0,t1), f(t0,t1,t1), f(t1,t1,t1)``).
+
+    Args:
+        ctrl: ``(N, 4, 2)``; t0, t1: ``(N,)``.
+
+    Returns:
+        ``(N, 4, 2)``.
+    """
+    def blossom(u1, u2, u3):  # de Casteljau with one parameter per level (symmetric in them)
+        q = ctrl
+        for u in (u1, u2, u3):
+            q = torch.lerp(q[:, :-1], q[:, 1:], u.view(-1, 1, 1).to(q.dtype))
+        return q[:, 0]  # (N, 2)
+
+    return torch.stack([blossom(t0, t0, t0), blossom(t0, t0, t1), blossom(t0, t1, t1), blossom(t1, t1, t1)], 1)
+
+
 def polygon_area(verts: torch.Tensor) -> torch.Tensor:
     """Signed shoelace area of closed polylines. ``verts (..., V, 2)`` -> ``(...)``."""
     x, y = verts[..., 0], verts[..., 1]

@@ -170,11 +170,83 @@ def boundary_edges(verts: torch.Tensor, shape_index: torch.Tensor | None) -> tor
 
 
 def edge_boundary(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-    """``boundary_edges`` of edge sets ``a -> b`` ``(N, E, 2)``, each set one shape: ``(N, E)`` bool."""
+    """``boundary_edges`` of edge sets ``a -> b`` ``(N, E, 2)``, each set one shape: ``(N, E)`` bool.
+
+    Compiled and up to ``DENSE_PAIRS`` probe-edge pairs in all, every probe is tested against
+    every edge of its set; else only against the edges that share its one-pixel band
+    (``point_winding_banded``)."""
     with torch.no_grad():
         e = a.shape[1]
-        inside = point_winding(_probes(a, b), a, b) != 0  # (N, 2E)
+        probes = _probes(a, b)
+        # compiled, the brute force's (N, 2E, E) tests fuse into one loop; eager, the bands win
+        # at every size (4x at 32 x 512 edges, 25x at 8 x 4096); both give the same integers
+        dense = compile_enabled() and a.shape[0] * 2 * e * e <= DENSE_PAIRS
+        w = point_winding(probes, a, b) if dense else point_winding_banded(probes, a, b)
+        inside = w != 0  # (N, 2E)
         return inside[..., :e] != inside[..., e:]
+
+
+DENSE_PAIRS = 2**25  # probe-edge pairs up to which edge_boundary tests them all (a few hundred MB of masks)
+MAX_BAND_PAIRS = 400_000_000  # probe-edge pairs of point_winding_banded (about a minute on 2 cores)
+_BAND_CHUNK = 4_000_000  # pairs tested at once
+
+
+def point_winding_banded(pts: torch.Tensor, a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """``point_winding`` testing each point only against the edges whose y-range meets the
+    point's one-pixel band ``floor(y)``: the same answer for any edges, fast when they are short.
+
+    Raises ``InputError`` when the pairs to test exceed ``MAX_BAND_PAIRS`` (counted before
+    any is tested): a drawing of long edges crossing everywhere.
+
+    Args:
+        pts: ``(N, M, 2)``; a, b: ``(N, E, 2)`` edges, pixel frame.
+
+    Returns:
+        ``(N, M)`` winding numbers (float).
+    """
+    from ..errors import InputError
+
+    n, m, e = pts.shape[0], pts.shape[1], a.shape[1]
+    dev = a.device
+    ay_, by_ = (torch.nan_to_num(t, nan=-2.0) for t in (a[..., 1], b[..., 1]))  # NaN crosses nothing anyway
+    lo = torch.floor(torch.minimum(ay_, by_)).clamp_(-1, _FAR).long().view(-1)  # (N*E,) bands
+    hi = torch.floor(torch.maximum(ay_, by_)).clamp_(-1, _FAR).long().view(-1)
+    span = torch.where((a[..., 1] == b[..., 1]).view(-1), 0, hi - lo + 1)  # a horizontal edge crosses no line
+    base = int(_FAR) + 3  # bands per set: keys never collide across sets
+    edge = torch.repeat_interleave(torch.arange(n * e, device=dev), span)  # (C,) one entry per band met
+    first = torch.cumsum(span, 0) - span
+    key = torch.div(edge, e, rounding_mode="floor") * base + lo[edge] + 1 + torch.arange(edge.numel(), device=dev) \
+        - first[edge]
+    key, order = torch.sort(key)
+    edge = edge[order]
+    pkey = torch.arange(n, device=dev).view(n, 1) * base \
+        + torch.floor(torch.nan_to_num(pts[..., 1], nan=-2.0)).clamp_(-1, _FAR).long() + 1
+    pkey = pkey.view(-1)  # (N*M,)
+    start = torch.searchsorted(key, pkey)
+    cnt = torch.searchsorted(key, pkey, right=True) - start
+    total = int(cnt.sum())
+    if total > MAX_BAND_PAIRS:
+        raise InputError(f"too complex to render: {total:,} point-edge tests for the nonzero rule "
+                         f"(at most {MAX_BAND_PAIRS:,}): too many edges share the same rows")
+    px, py = pts[..., 0].reshape(-1), pts[..., 1].reshape(-1)
+    ax, ay, bx, by = (t.reshape(-1) for t in (a[..., 0], a[..., 1], b[..., 0], b[..., 1]))
+    out = torch.zeros(n * m, dtype=a.dtype, device=dev)
+    ends = torch.cumsum(cnt, 0)
+    q0 = 0
+    while q0 < n * m:  # runs of points with at most _BAND_CHUNK pairs (or one point)
+        q1 = max(q0 + 1, int(torch.searchsorted(ends, ends[q0] - cnt[q0] + _BAND_CHUNK, right=True)))
+        q1 = min(q1, n * m)
+        c = cnt[q0:q1]
+        q = torch.repeat_interleave(torch.arange(q0, q1, device=dev), c)  # (K,) the point of each pair
+        j = edge[start[q] + torch.arange(q.numel(), device=dev) - (torch.cumsum(c, 0) - c)[q - q0]]  # its edge
+        up = (ay[j] <= py[q]) & (by[j] > py[q])
+        down = (by[j] <= py[q]) & (ay[j] > py[q])
+        dy = by[j] - ay[j]
+        xi = ax[j] + (py[q] - ay[j]) * (bx[j] - ax[j]) / torch.where(dy == 0, torch.ones_like(dy), dy)
+        right = xi > px[q]
+        out.index_add_(0, q, (up & right).to(a.dtype) - (down & right).to(a.dtype))
+        q0 = q1
+    return out.view(n, m)
 
 
 def _probes(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:

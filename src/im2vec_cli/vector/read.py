@@ -10,8 +10,10 @@ Strokes become filled outlines (skia-pathops: width, caps, joins, miter limit, d
 stroked in the element's own coordinates and then transformed, written as a second shape
 over the element's fill. Refused with one ``InputError`` line, never drawn wrong: gradient
 or pattern paint, semi-transparent paint, text and embedded images, and, before any
-geometry is built, SVGs over ``MAX_SEGMENTS`` segments, over ``MAX_ELEMENTS`` elements with
-every ``<use>`` expanded (or with a ``<use>`` cycle), or with coordinates beyond ``MAX_COORD`` px. Shapes with ``fill="none"`` and no stroke draw nothing and are skipped.
+geometry is built, clip paths, masks, markers and filters, SVGs over ``MAX_SEGMENTS`` segments
+(strokes and dashes counted before they are made), over ``MAX_ELEMENTS`` elements with
+every ``<use>`` expanded (or with a ``<use>`` cycle), or with coordinates beyond ``MAX_COORD`` px.
+Shapes with ``fill="none"`` and no stroke, or ``visibility="hidden"``, draw nothing and are skipped.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from .image import VectorImage, VectorShape
 
 MAX_SEGMENTS = 200_000  # path segments in one SVG (an SVG of 1,000,000 took minutes to read)
 MAX_COORD = 1e6  # |coordinate| and canvas side, in px
+SEGMENTS_PER_DASH = 6  # a butt dash strokes to 4 lines and a close; round caps add curves
 MAX_ELEMENTS = 100_000  # elements once every <use> is expanded (nested <use> grows exponentially)
 _XLINK_HREF = "{http://www.w3.org/1999/xlink}href"
 _NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
@@ -56,10 +59,28 @@ def _check_xml(data: bytes) -> None:
     numbers = sum(len(_NUMBER.findall(el.get(a, ""))) for el in root.iter() for a in ("d", "points"))
     if numbers > 6 * MAX_SEGMENTS:
         raise InputError(f"too much path data ({numbers} numbers; at most {MAX_SEGMENTS} segments)")
+    _refuse_effects(root)
     try:
         _expanded_size(root)
     except RecursionError:
         raise InputError("the SVG nests elements too deeply") from None
+
+
+EFFECTS = ("clip-path", "mask", "marker-start", "marker-mid", "marker-end", "marker", "filter")
+_EFFECT_CSS = re.compile(r"(?<![\w-])(" + "|".join(EFFECTS) + r")\s*:\s*([^;}]+)")
+
+
+def _refuse_effects(root) -> None:
+    """Clip paths, masks, markers and filters change what is drawn in ways a ``VectorShape``
+    does not hold: refused by name (an attribute, a ``style`` or a ``<style>`` sheet), never
+    drawn wrong. ``none`` is no effect."""
+    for el in root.iter():
+        tag = el.tag.rsplit("}", 1)[-1] if isinstance(el.tag, str) else ""
+        found = [(k, el.get(k)) for k in EFFECTS if el.get(k) is not None]
+        found += _EFFECT_CSS.findall(el.get("style", "") + (el.text or "" if tag == "style" else ""))
+        for name, value in found:
+            if value.strip() != "none":
+                raise InputError(f"<{tag}>: {name} is not supported ({name}: {value.strip()[:40]})")
 
 
 def _expanded_size(root) -> int:
@@ -92,9 +113,15 @@ def _stroked(el) -> bool:
     return el.stroke is not None and el.stroke.value is not None and float(el.stroke_width or 0) > 0
 
 
+def _tag(el) -> str:
+    """The SVG element name of an svgelements shape."""
+    kind = type(el).__name__.lower()
+    return {"simpleline": "line"}.get(kind, kind)
+
+
 def _refuse_paint(el) -> None:
     """One line for what a ``VectorShape`` (one opaque flat fill) cannot hold."""
-    kind = type(el).__name__.lower()
+    kind = _tag(el)
     fill = str(el.values.get("fill", ""))
     if fill.startswith("url("):
         raise InputError(f"<{kind}>: gradient and pattern fills are not supported ({fill})")
@@ -204,17 +231,36 @@ def _stroke_contours(chains: list[tuple[np.ndarray, bool]], el, m) -> list[np.nd
 
     v = el.values
     path = skia.to_path(chains)
-    dash_text = str(v.get("stroke-dasharray", "none")).strip()
-    dashes = [] if dash_text == "none" else [float(x) for x in re.split(r"[\s,]+", dash_text) if x]
-    if len(dashes) % 2:
-        dashes *= 2  # SVG repeats an odd list
+    dashes = _dashes(str(v.get("stroke-dasharray", "none")))
+    if dashes:  # bound the dashes before skia makes them: path length / period
+        length = sum(float(np.linalg.norm(np.diff(ch, axis=0), axis=1).sum()) for ch, _ in chains)  # >= arc length
+        count = length / sum(dashes) * (len(dashes) // 2)
+        if count * SEGMENTS_PER_DASH > MAX_SEGMENTS:
+            raise InputError(f"<{_tag(el)}>: stroke-dasharray makes about {count:,.0f} dashes "
+                             f"(at most {MAX_SEGMENTS // SEGMENTS_PER_DASH:,})")
     path.stroke(float(el.stroke_width), getattr(pathops.LineCap, CAPS.get(str(v.get("stroke-linecap", "butt")), "BUTT_CAP")),
                 getattr(pathops.LineJoin, JOINS.get(str(v.get("stroke-linejoin", "miter")), "MITER_JOIN")),
                 float(v.get("stroke-miterlimit", 4)), dash_array=dashes or None,
                 dash_offset=float(v.get("stroke-dashoffset", 0) or 0))
     path.convertConicsToQuads()
-    path.simplify()  # one non-overlapping outline (nonzero)
+    if sum(1 for _ in path.segments) > MAX_SEGMENTS:
+        raise InputError(f"<{_tag(el)}>: its stroke outline has more than {MAX_SEGMENTS} segments")
+    # Filled under nonzero as it stands (the outline's pieces overlap at joins, as Skia draws
+    # strokes): no pathops.simplify, whose cost grows with the crossings beyond any bound.
     return [_transform(c, m) for c in skia.contours(path)]
+
+
+def _dashes(text: str) -> list[float]:
+    """``stroke-dasharray`` as an even list of lengths; ``[]`` (solid) for ``none``, and, as
+    SVG says, for a list that sums to zero or has a negative value."""
+    text = text.strip()
+    try:
+        dashes = [] if text in ("none", "") else [float(x) for x in re.split(r"[\s,]+", text) if x]
+    except ValueError:
+        raise InputError(f"stroke-dasharray {text[:40]!r} is not a list of numbers") from None
+    if not all(math.isfinite(d) and d >= 0 for d in dashes) or sum(dashes) <= 0:
+        return []
+    return dashes * 2 if len(dashes) % 2 else dashes  # SVG repeats an odd list
 
 
 def from_svg(text: str | bytes) -> VectorImage:
@@ -240,8 +286,8 @@ def from_svg(text: str | bytes) -> VectorImage:
     for el in doc.elements():
         if isinstance(el, (se.Text, se.Image)):
             raise InputError(f"<{type(el).__name__.lower()}> is not supported (convert text to paths first)")
-        if not isinstance(el, se.Shape):
-            continue
+        if not isinstance(el, se.Shape) or str(el.values.get("visibility", "visible")).strip() in ("hidden", "collapse"):
+            continue  # visibility is inherited (svgelements carries it down) and a child may undo it
         _refuse_paint(el)
         filled, stroked = el.fill is not None and el.fill.value is not None, _stroked(el)
         if not (filled or stroked):  # fill="none" and no stroke: nothing to draw
