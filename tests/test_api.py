@@ -51,6 +51,15 @@ def test_every_picture_form_gives_the_same_result(model, tmp_path):
     assert isinstance(vec, VectorImage) and (vec.width, vec.height) == (40, 24)
 
 
+def test_an_options_object_and_keyword_fields_are_one_thing(model):
+    m, _ = model
+    opts = iv.VectorizeOptions(parts="model", effort="fast", simplify_px=0.5)
+    by_object = iv.vectorize(_disc(), m, opts).to_svg()
+    assert by_object == iv.vectorize(_disc(), m, parts="model", simplify_px=0.5).to_svg()
+    assert by_object != iv.vectorize(_disc(), m, opts, simplify_px=0.0).to_svg()  # a field overrides the object
+    assert opts.parts == "model"  # and the object itself is left as it was (frozen)
+
+
 def test_lists_in_lists_out_and_refinement_never_worse(model):
     m, _ = model
     imgs = [_disc(), _disc(32, 32)]

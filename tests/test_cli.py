@@ -171,18 +171,35 @@ def test_vectorize_refine_flag(tmp_path, model_dir):
     assert res.exit_code == 2 and not (tmp_path / "c.svg").exists()
 
 
-def test_effort_choices_are_the_refine_presets():
-    # cli.py spells the names out so that `--help` does not import torch through refine.py
-    from im2vec_cli.cli import vectorize
-    from im2vec_cli.refine import EFFORTS
+def test_choice_lists_are_written_once_and_keep_torch_out_of_help():
+    """The CLI's choices are options.py's lists (one definition), the pipelines use the same
+    lists, and importing them with the CLI starts no torch (a real process: `--help`)."""
+    from im2vec_cli import config, infer, options, refine
+    from im2vec_cli.cli import evaluation, generate, sample, training, vectorize
 
-    option = next(p for p in vectorize.params if p.name == "effort")
-    assert list(option.type.choices) == list(EFFORTS) and option.default in EFFORTS
+    def choices(command, name):
+        return tuple(next(p for p in command.params if p.name == name).type.choices)
+
+    assert tuple(refine.EFFORTS) == options.EFFORTS == choices(vectorize, "effort")
+    assert refine.PARTS is options.PARTS and choices(vectorize, "parts") == options.PARTS == choices(sample, "parts")
+    assert infer.PRIORS is options.PRIORS and choices(sample, "prior") == options.PRIORS
+    assert choices(evaluation.eval_cmd, "prior") == options.PRIORS == choices(generate.sample, "prior")
+    assert config.GROUPINGS is options.GROUPINGS and choices(training.train, "grouping") == options.GROUPINGS
+    assert choices(training.train, "arch") == options.ARCHS and choices(training.train_features, "fit") == options.FITS
+    code = "import sys, im2vec_cli.cli; print('torch' in sys.modules)"
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert r.stdout.strip() == "False", r.stderr
 
 
-def test_parts_choices_are_the_refine_parts():
-    from im2vec_cli.cli import vectorize
-    from im2vec_cli.refine import PARTS
+@pytest.mark.parametrize("field, value", [("effort", "slow"), ("parts", "all"), ("tolerance", 0), ("colors", 65),
+                                          ("max_paths", 0), ("segments", 0), ("quality", float("nan")),
+                                          ("simplify_px", -1), ("colors", True)])
+def test_vectorize_options_are_checked_where_they_are_made(field, value):
+    from im2vec_cli.options import VectorizeOptions
 
-    option = next(p for p in vectorize.params if p.name == "parts")
-    assert list(option.type.choices) == list(PARTS) and option.default == PARTS[0]
+    with pytest.raises(ValueError, match=field):
+        VectorizeOptions(**{field: value})
+    import dataclasses
+
+    with pytest.raises(ValueError, match=field):
+        dataclasses.replace(VectorizeOptions(), **{field: value})

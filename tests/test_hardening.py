@@ -780,7 +780,8 @@ def test_batch_of_1000_with_5_percent_bad(tmp_path, model_dir, monkeypatch):
     assert {line.split(":")[1].strip().rsplit("/", 1)[-1] for line in errors[:-1]} == {
         f"g{i:04d}.png" for i in bad}
     expected = min(os.cpu_count() or 1, 8)
-    assert (jobs[0]["jobs"], jobs[0]["refine"], jobs[0]["compile"]) == (expected, True, False) if expected > 1 else not jobs
+    assert (jobs[0]["jobs"], jobs[0]["options"].refine, jobs[0]["options"].compile) == (expected, True, False) \
+        if expected > 1 else not jobs
 
 
 @pytest.mark.parametrize("refine", [True, False])

@@ -10,10 +10,14 @@ import torch::
 __version__ = "0.1.0"
 
 _API = ("load_model", "vectorize", "encode", "decode", "sample", "prior_latents", "interpolate")
-__all__ = ["__version__", "VectorImage", "VectorShape", *_API]
+__all__ = ["__version__", "VectorImage", "VectorShape", "VectorizeOptions", *_API]
 
 
 def __getattr__(name: str):
+    if name == "VectorizeOptions":  # torch-free
+        from .options import VectorizeOptions
+
+        return VectorizeOptions
     if name in _API:
         from . import api
 

@@ -26,11 +26,12 @@ from . import refine as refinement
 from .errors import ModelError
 from .files import as_image
 from .model.pretrained import DEFAULT_MODEL, from_pretrained
+from .options import PARTS, VectorizeOptions
 from .raster import compiling
 from .runtime import resolve_device
 from .vector import VectorImage, simplify
 
-__all__ = ["decode", "encode", "interpolate", "load_model", "prior_latents", "sample", "vectorize"]
+__all__ = ["VectorizeOptions", "decode", "encode", "interpolate", "load_model", "prior_latents", "sample", "vectorize"]
 
 
 def load_model(name_or_dir: str = DEFAULT_MODEL, device: str | torch.device = "auto"):
@@ -44,18 +45,18 @@ def _model(model):
     return load_model(model) if isinstance(model, str) else model
 
 
-def vectorize(images, model=DEFAULT_MODEL, *, refine: bool = True, effort: str = "fast", parts: str = "clean",
-              tolerance: float | None = None, colors: int | None = None, segments: int | str | None = None,
-              quality: float | None = None, max_paths: int | None = None,
-              simplify_px: float | None = None, compile: bool = False) -> VectorImage | list[VectorImage]:
+def vectorize(images, model=DEFAULT_MODEL, options: VectorizeOptions | None = None,
+              **fields) -> VectorImage | list[VectorImage]:
     """Vectorize one picture (or a list of them) into closed cubic paths.
 
     Args:
         images: a picture, or a list of pictures (any size each).
         model: a model from ``load_model``, or its name.
+        options: a ``VectorizeOptions`` (default: its defaults); ``fields`` override any of
+            its fields by name (``vectorize(img, m, parts="model")``). The fields:
         refine: fit the paths to each picture through the renderer (``refine.refine``);
             ``False`` gives the model's guess alone, in one batch.
-        effort: with ``refine``, ``"fast"`` or ``"best"`` (``refine.EFFORTS``).
+        effort: with ``refine``, ``"fast"`` or ``"best"`` (``options.EFFORTS``).
         parts: with ``refine``, ``"clean"`` (each colour one path of non-overlapping outer
             contours and holes, from the model's paths or the picture's own regions, whichever
             fits better) or ``"model"`` (the model's own paths, the same for every picture of
@@ -77,32 +78,23 @@ def vectorize(images, model=DEFAULT_MODEL, *, refine: bool = True, effort: str =
     Returns:
         One ``VectorImage`` per picture (a list for a list), in each picture's pixel frame.
     """
+    o = dataclasses.replace(options or VectorizeOptions(), **fields)  # validated here, once
     model = _model(model)
     one = not isinstance(images, (list, tuple))
     pictures = [as_image(x) for x in ([images] if one else images)]
-    check_segments(model, segments)
-    if effort not in refinement.EFFORTS:
-        raise ValueError(f"effort must be one of {sorted(refinement.EFFORTS)}, got {effort!r}")
-    if parts not in refinement.PARTS:
-        raise ValueError(f"parts must be one of {refinement.PARTS}, got {parts!r}")
-    if tolerance is not None and not (np.isfinite(tolerance) and tolerance > 0):
-        raise ValueError(f"tolerance must be a positive number of pixels, got {tolerance!r}")
-    if colors is not None and not (isinstance(colors, (int, np.integer)) and 1 <= colors <= 64):
-        raise ValueError(f"colors must be an integer in [1, 64], got {colors!r}")
-    if max_paths is not None and not (isinstance(max_paths, (int, np.integer)) and max_paths >= 1):
-        raise ValueError(f"max_paths must be an integer >= 1, got {max_paths!r}")
-    kw = {"segments": segments, "quality": quality, "max_paths": max_paths}
-    if refine:
-        settings = refinement.EFFORTS[effort]
-        if simplify_px is not None:
-            settings = dataclasses.replace(settings, simplify_tol=simplify_px)
-        if tolerance is not None:
-            settings = dataclasses.replace(settings, tolerance=float(tolerance))
-        with compiling(compile):  # off by default: each new image size would compile afresh
-            out = [v for v, _ in refinement.refine_batch(model, pictures, settings=settings, parts=parts,
-                                                         colors=colors, **kw)]
+    check_segments(model, o.segments)
+    kw = {"segments": o.segments, "quality": o.quality, "max_paths": o.max_paths}
+    if o.refine:
+        settings = refinement.EFFORTS[o.effort]
+        if o.simplify_px is not None:
+            settings = dataclasses.replace(settings, simplify_tol=o.simplify_px)
+        if o.tolerance is not None:
+            settings = dataclasses.replace(settings, tolerance=float(o.tolerance))
+        with compiling(o.compile):  # off by default: each new image size would compile afresh
+            out = [v for v, _ in refinement.refine_batch(model, pictures, settings=settings, parts=o.parts,
+                                                         colors=o.colors, **kw)]
     else:
-        out = [simplify(v, simplify_px or 0.0) for v in infer.vectorize(model, pictures, **kw)]
+        out = [simplify(v, o.simplify_px or 0.0) for v in infer.vectorize(model, pictures, **kw)]
     return out[0] if one else out
 
 
@@ -133,8 +125,8 @@ def _parts(parts: str | None, keep_all: bool) -> bool:
     """Whether to draw clean outlines: ``parts`` ``"clean"`` / ``"model"``, default clean
     unless ``keep_all`` (morphs need the model's own paths)."""
     parts = parts or ("model" if keep_all else "clean")
-    if parts not in refinement.PARTS:
-        raise ValueError(f"parts must be one of {refinement.PARTS}, got {parts!r}")
+    if parts not in PARTS:
+        raise ValueError(f"parts must be one of {list(PARTS)}, got {parts!r}")
     return parts == "clean"
 
 

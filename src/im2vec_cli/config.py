@@ -13,14 +13,13 @@ from pathlib import Path
 from typing import Any, get_type_hints
 
 from .errors import ConfigError, Im2VecError
-from .frame import FITS
+from .options import ARCHS, FITS, GROUPINGS
 
 FORMAT_VERSION = 1
 # ModelConfig.grouping: how the P paths make shapes. "evenodd": one shape under the even-odd rule (every
 # overlap of two paths is a hole); "nonzero": one shape under the nonzero rule (overlaps stay filled, a
 # path wound the other way inside another cuts a hole, as in font outlines); "layers": one coloured shape
 # per path, composited by depth.
-GROUPINGS = ("evenodd", "nonzero", "layers")
 PYRAMID_MODES = ("blur", "render")  # TrainConfig.pyramid: the coarse levels of the loss (raster.render_pyramid)
 
 
@@ -118,7 +117,7 @@ class ModelConfig(JsonConfig):
                 raise ConfigError(f"ModelConfig.{key} must be >= {low}, got {getattr(self, key)}")
         if self.min_segments > self.max_segments:
             raise ConfigError(f"ModelConfig.min_segments ({self.min_segments}) is above max_segments ({self.max_segments})")
-        for key, allowed in (("arch", ("im2vec", "imagevae")), ("fit", FITS),
+        for key, allowed in (("arch", ARCHS), ("fit", FITS),
                              ("grouping", GROUPINGS)):
             if getattr(self, key) not in allowed:
                 raise ConfigError(f"ModelConfig.{key} must be one of {allowed}, got {getattr(self, key)!r}")

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import torch
 import torch.nn.functional as F
 
-FITS = ("resize", "pad")  # ModelConfig.fit: how an image smaller than the model square meets it
+from .options import FITS  # ModelConfig.fit: how an image smaller than the model square meets it
 
 
 def check_fit(fit: str) -> None:

@@ -11,8 +11,8 @@ import torch
 
 from .errors import ModelError
 from .frame import Placement, resize_square, to_model_frame
-from .model.prior import PRIORS
 from .model.vae import Decoded, Im2Vec
+from .options import PRIORS
 from .raster import line_controls
 from .vector import VectorImage, VectorShape, from_tensors, resolve_overlaps
 from .vector.outline import cleaned

@@ -15,10 +15,12 @@ import multiprocessing
 import signal
 from collections.abc import Iterable, Iterator
 
+from .options import VectorizeOptions
+
 _state: dict = {}
 
 
-def _init(model_ref: str, device: str, seed: int, threads: int, options: dict) -> None:
+def _init(model_ref: str, device: str, seed: int, threads: int, options: VectorizeOptions | None) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and ends the pool
 
     from .api import load_model
@@ -32,12 +34,13 @@ def _init(model_ref: str, device: str, seed: int, threads: int, options: dict) -
 def _run(pictures: list) -> list:
     from .api import vectorize
 
-    return vectorize(pictures, _state["model"], **_state["options"])
+    return vectorize(pictures, _state["model"], _state["options"])
 
 
 def vectorize_chunks(chunks: Iterable[list], model_ref: str, *, jobs: int, threads: int | None = None,
-                     device: str = "auto", seed: int = 0, **options) -> Iterator[list]:
-    """``api.vectorize(chunk, model, **options)`` for each chunk of pictures, in ``jobs``
+                     device: str = "auto", seed: int = 0, options: VectorizeOptions | None = None
+                     ) -> Iterator[list]:
+    """``api.vectorize(chunk, model, options)`` for each chunk of pictures, in ``jobs``
     worker processes (each with ``threads`` torch threads, default the free cores shared
     among the jobs, ``runtime.free_cores``, and the model
     ``model_ref``, a name or a folder). Yields each chunk's vector images in the order of

@@ -28,13 +28,13 @@ from .frame import Placement
 from .infer import flat_result, model_input, segment_counts, to_vector
 from .model.vae import Im2Vec
 from .optim import Adam
+from .options import PARTS
 from .raster import flatten_closed, gaussian_pyramid, polygon_area, pyramid_l2, render_pyramid, segment_controls
 from .vector import VectorImage, VectorShape, fill_vector, resolve_overlaps, simplify
 from .vector.fit import split_segments
 from .vector.outline import Corners, redrawn, traced, untangle
 from .vector.trace import background_color, two_tone
 
-PARTS = ("clean", "model")  # `vectorize --parts`: clean outlines (default) or the model's own paths
 CHOICE_TOLERANCE = 0.25  # px: the clean-outline starts are compared fitted this closely
 
 
@@ -75,14 +75,14 @@ class RefineSettings:
     # at twice the time (bench/outlines.py), so the fast effort traces the image alone
 
 
-# Named efforts (`vectorize --effort`, whose choices cli.py spells out to keep torch out of
-# `--help`). "best" is ``RefineSettings()``; "fast" takes about a third of the steps and a
+# Named efforts (`vectorize --effort`; options.EFFORTS names them, torch-free, for the CLI).
+# "best" is ``RefineSettings()``; "fast" takes about a third of the steps and a
 # coarser polish polygon: on 62 held-out Liberation Sans Narrow glyphs
 # at 64 px (fonts model) IoU@4x 0.9855 and MSE 0.00051 in 0.26 s per glyph, against 0.9913,
 # 0.00022 and 0.79 s (on all 248 glyphs, `make bench-vectorize`: 0.9867 / 0.00036 in 0.44 s against
 # 0.9914 / 0.00018 in 1.01 s; potrace 0.9524 / 0.00283), so that one `vectorize` fits in about 2 s
 # with torch's import.
-EFFORTS = {
+EFFORTS = {  # in the order of options.EFFORTS
     "fast": RefineSettings(latent_steps=5, point_steps=25, polish_steps=15, polish_samples=8, outline_steps=25,
                            model_start=False),
     "best": RefineSettings(split_error=0.005),

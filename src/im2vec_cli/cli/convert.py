@@ -7,6 +7,7 @@ import collections
 import click
 
 from ..errors import Im2VecError
+from ..options import EFFORTS, PARTS, VectorizeOptions
 from .app import EXIT_HELP, cli, starting_up, warn
 from .batch import each, expand_inputs, plan_outputs, refuse_overwrite, run_batch
 from .options import Finite, load_model, model_options, nonempty, parse_segments
@@ -16,8 +17,6 @@ VECTORIZE_CHUNK = 32  # images per batch (one forward pass, one refinement batch
 JOBS_MIN_IMAGES = 64  # --jobs auto: worker processes (their start-up, about 3 s each) pay from this many inputs
 MAX_AUTO_JOBS = 8  # --jobs auto: at most this many (each holds the model and about 0.5 GB)
 MAX_SVG_BYTES = 32 * 2**20  # `render` input: an SVG larger than this is refused while reading
-EFFORTS = ["fast", "best"]  # refine.EFFORTS, spelled out so that `--help` does not import torch
-PARTS = ["clean", "model"]  # refine.PARTS, likewise
 
 
 @cli.command(epilog=EXIT_HELP)
@@ -79,9 +78,9 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, toleranc
     runtime.set_threads(runtime.intra_op_threads(len(items), free=free))
     model = load_model(model_name, device, seed)
     many = refine and len(items) > 1
-    options = {"refine": refine, "effort": effort, "segments": k, "quality": quality,
-               "max_paths": max_paths, "simplify_px": simplify_px, "parts": parts, "tolerance": tolerance,
-               "colors": colors, "compile": compile_}
+    options = VectorizeOptions(refine=refine, effort=effort, segments=k, quality=quality, max_paths=max_paths,
+                               simplify_px=simplify_px, parts=parts, tolerance=tolerance, colors=colors,
+                               compile=compile_)
     if jobs is None:
         on_cpu = next(model.parameters()).device.type == "cpu"
         jobs = min(free, MAX_AUTO_JOBS) if many and on_cpu and len(items) >= JOBS_MIN_IMAGES else 1
@@ -147,7 +146,7 @@ def _in_process(model, options, write):
         good, bad = _load(group)
         yield from bad
         if good:
-            for (item, _), vec in zip(good, api.vectorize([img for _, img in good], model, **options)):
+            for (item, _), vec in zip(good, api.vectorize([img for _, img in good], model, options)):
                 yield write(item, vec)
 
     return work
@@ -169,7 +168,7 @@ def _in_pool(model_name, jobs, threads, device, seed, options, write):
                     yield [img.permute(1, 2, 0).numpy() for _, img in good]
 
         for vecs in parallel.vectorize_chunks(chunks(), model_name, jobs=jobs, threads=threads, device=device,
-                                              seed=seed, **options):
+                                              seed=seed, options=options):
             yield from bad
             bad.clear()
             for item, vec in zip(names.popleft(), vecs):

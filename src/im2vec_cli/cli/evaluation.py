@@ -5,8 +5,8 @@ from __future__ import annotations
 import click
 
 from ..errors import Im2VecError
+from ..options import PRIORS
 from .app import EXIT_HELP, cli, warn
-from .generate import PRIORS
 from .options import load_model, model_options, nonempty, parse_segments, parse_sweep
 from .streams import write_output
 

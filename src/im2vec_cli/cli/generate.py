@@ -5,13 +5,11 @@ from __future__ import annotations
 import click
 
 from ..errors import Im2VecError
+from ..options import PARTS, PRIORS
 from .app import EXIT_HELP, cli
 from .batch import refuse_overwrite
-from .convert import PARTS
 from .options import Finite, load_model, model_options, nonempty, parse_segments
 from .streams import load_input_image, make_folder, write_output
-
-PRIORS = ["auto", "fitted", "normal"]  # model.prior.PRIORS, spelled out so that `--help` does not import torch
 
 
 @cli.command(epilog=EXIT_HELP)

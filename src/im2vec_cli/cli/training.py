@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from ..errors import Im2VecError
+from ..options import ARCHS, FITS, GROUPINGS
 from .app import EXIT_HELP, cli, warn
 from .options import SEED, Finite, device_option, load_model, model_options, nonempty
 
@@ -93,12 +94,12 @@ class _Progress:
 @click.option("--val", "val_dir", default=None, callback=nonempty, help="Validation folder (default: DATA_DIR/val, or a split).")
 @click.option("--config", "config_file", default=None, type=click.Path(dir_okay=False),
               help="JSON with 'model' and/or 'train' sections (options below override it).")
-@click.option("--arch", type=click.Choice(["im2vec", "imagevae"]),
+@click.option("--arch", type=click.Choice(ARCHS),
               help="im2vec: the vector model; imagevae: the raster baseline of the paper (sec. 4). [im2vec]")
 @click.option("--size", type=click.IntRange(8), help="Image size (power of two). [64]")
 @click.option("--paths", type=click.IntRange(1), help="Paths per image. [4]")
 @click.option("--latent", type=click.IntRange(1), help="Latent size. [128]")
-@click.option("--grouping", type=click.Choice(["evenodd", "nonzero", "layers"]),
+@click.option("--grouping", type=click.Choice(GROUPINGS),
               help="evenodd: one even-odd shape of all paths (glyphs, digits); nonzero: one nonzero shape (overlaps stay filled; icons); layers: one coloured layer per path. [evenodd]")
 @click.option("--batch", type=click.IntRange(1), help="Batch size. [64]")
 @click.option("--steps", type=click.IntRange(1), help="Optimiser steps. [5000]")
@@ -262,7 +263,7 @@ def fit_prior_cmd(data_dir, output, overwrite, components, model_name, device, s
 @click.option("-o", "--output", required=True, callback=nonempty, help="Folder for the feature net.")
 @click.option("--size", type=click.IntRange(32), default=64, show_default=True,
               help="Input size: the image size of the dataset's models (a multiple of 32).")
-@click.option("--fit", type=click.Choice(["resize", "pad"]), default="resize", show_default=True,
+@click.option("--fit", type=click.Choice(FITS), default="resize", show_default=True,
               help="How smaller images are fitted to --size, as the dataset's models do (MNIST: pad).")
 @click.option("--steps", type=click.IntRange(1), default=2000, show_default=True, help="Optimiser steps.")
 @click.option("--seed", type=SEED, default=0, show_default=True, help="Random seed.")

@@ -32,7 +32,6 @@ PRIOR_WEIGHTS = "latent_prior.safetensors"
 PRIOR_CONFIG = "latent_prior.json"
 DEFAULT_COMPONENTS = 10  # chosen by precision/recall of the samples (models/*/README.md)
 IMAGES_PER_COMPONENT = 200  # a mixture fitted at the end of training has at most N / this components
-PRIORS = ("auto", "fitted", "normal")  # auto: the fitted prior when the model has one, else N(0, I)
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,8 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
-from ..config import GROUPINGS, ModelConfig
+from ..config import ModelConfig
+from ..options import GROUPINGS
 from ..raster import render_supersampled
 from ..raster.bezier import flatten_closed, polygon_area
 from .decoder import PathCodes, PathDecoder
