@@ -33,7 +33,7 @@ bench: install
 	$(PY) bench/cli.py --rounds 3
 
 # One picture start to finish against `import torch`, quiet and with one core busy, beside the commit
-# CLI_BEFORE (checked out in bench/.before-cli): docs/BENCHMARKS.md. About 10 minutes on 2 cores.
+# CLI_BEFORE (checked out in bench/.before-cli): docs/bench-cli.md. About 10 minutes on 2 cores.
 CLI_BEFORE ?= 549518d
 bench-safety: install
 	$(PY) bench/safety.py --out docs/safety-run.md
@@ -41,7 +41,7 @@ bench-safety: install
 bench-cli: install
 	test -f /usr/share/fonts/truetype/freefont/FreeSerif.ttf || (apt-get update -q && apt-get install -y -q fonts-freefont-ttf)
 	test -d bench/.before-cli || git worktree add --detach bench/.before-cli $(CLI_BEFORE)
-	$(PY) bench/cli.py --rounds 7 --before bench/.before-cli --markdown docs/BENCHMARKS.md
+	$(PY) bench/cli.py --rounds 7 --before bench/.before-cli --markdown docs/bench-cli.md
 
 # Vectorize fidelity against potrace and vtracer (issue "Vectorize fidelity"); the tools and
 # the held-out font are installed here only, they are not runtime dependencies.

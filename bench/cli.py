@@ -26,7 +26,7 @@ Every output is checked: each SVG is compared byte for byte with the one the oth
 wrote for the same picture (identical or not is printed; the outline benches judge any change).
 
 Run: ``make bench-cli`` or ``python bench/cli.py [--rounds 7] [--before DIR]
-[--markdown docs/BENCHMARKS.md]``.
+[--markdown docs/bench-cli.md]``.
 """
 
 from __future__ import annotations
@@ -182,7 +182,7 @@ def main():
             f"packages under 5 ms left out):\n\n{imports}\n")
     print(text)
     if args.markdown:
-        Path(args.markdown).write_text(f"# Benchmarks\n\n{text}")
+        Path(args.markdown).write_text(f"# One picture against `import torch` (`make bench-cli`)\n\n{text}")
 
 
 if __name__ == "__main__":

@@ -154,3 +154,19 @@ def test_functions_are_short(path):
             if node.end_lineno - node.lineno + 1 > MAX_LINES and key not in LONG:
                 long.append(f"{key} ({node.end_lineno - node.lineno + 1} lines)")
     assert long == []
+
+
+def test_readme_is_short_and_every_link_in_the_docs_resolves():
+    """README stays a front page (what it is, the two commands, the commands, the API, the
+    models, links), and a moved section never leaves a dead relative link behind."""
+    import re
+
+    root = SRC.parents[1]
+    readme = root / "README.md"
+    assert len(readme.read_text().splitlines()) <= 200
+    dead = []
+    for doc in [readme, *sorted((root / "docs").glob("*.md"))]:
+        for target in re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", doc.read_text()):
+            if "://" not in target and not (doc.parent / target).exists():
+                dead.append(f"{doc.relative_to(root)} -> {target}")
+    assert dead == []
