@@ -131,3 +131,31 @@ def test_svg_of_the_api_is_valid_xml_of_closed_paths(model):
     for el in root.iter():
         if el.tag.endswith("path"):
             assert el.get("d").strip().endswith("Z")
+
+
+def test_the_api_trains_fine_tunes_fits_a_prior_and_exports(tmp_path):
+    """What `train`, `train --init`, `fit-prior` and `export` do, from Python: models from
+    images without the CLI (issue 33, item 4)."""
+    from im2vec_cli import api
+    from im2vec_cli.errors import ModelError
+    from tests.helpers import TINY
+
+    data = tmp_path / "data"
+    data.mkdir()
+    for i in range(6):
+        png(data / f"{i}.png", 32, 32 - i)
+    base = make_tiny_model(tmp_path / "base")
+    fast = {"steps": 2, "batch": 2, "workers": 1, "val_every": 1000, "ckpt_every": 1000, "preview_every": 1000}
+    out = api.train(data, tmp_path / "run", init=base, model_config={"paths": TINY.paths + 1}, train_config=fast,
+                   device="cpu")
+    grown = iv.load_model(str(out), "cpu")
+    assert grown.config.paths == TINY.paths + 1 and grown.config.latent == TINY.latent
+    with pytest.raises(ValueError, match="drop latent"):
+        api.train(data, tmp_path / "run2", init=base, model_config={"latent": 8}, train_config=fast, device="cpu")
+    prior = iv.fit_prior(data, iv.load_model(base, "cpu"), tmp_path / "with", components=1)
+    assert prior.config.images == 6 and iv.load_model(str(tmp_path / "with"), "cpu").latent_prior is not None
+    assert iv.load_model(base, "cpu").latent_prior is None  # the model's own folder is left alone
+    with pytest.raises(ModelError, match="own folder"):
+        iv.fit_prior(data, iv.load_model(base, "cpu"), base, components=1)
+    folder, step = iv.export(tmp_path / "run", tmp_path / "exported")
+    assert step == 2 and (folder / "model.safetensors").is_file()

@@ -700,10 +700,6 @@ def test_all_black_is_one_canvas_square(tmp_path, model_dir):
     assert img.max() < 0.01  # every pixel black, as in the input
 
 
-def test_there_are_at_least_70_kinds():
-    assert len(CASES) >= 70
-
-
 def test_read_only_output_folder(tmp_path, model_dir, monkeypatch):
     src = png(tmp_path / "a.png")
     ro = tmp_path / "ro"

@@ -250,11 +250,15 @@ def test_larger_tolerance_gives_fewer_segments_on_glyphs():
 
 @needs_fonts
 def test_parts_model_keeps_the_models_paths(tmp_path):
-    """`--parts model` is the model's own structure: several paths of the model's segment count."""
+    """`--parts model` is the model's own structure: several paths, each of at most the model's
+    segment count (merging only removes segments), where clean parts give one path."""
     img = picture('<rect x="14.3" y="12.6" width="35" height="37.5"/>')
     clean = api.vectorize(img, "fonts")
     model = api.vectorize(img, "fonts", parts="model")
-    assert clean.num_paths == 1 and model.num_paths >= 1
+    segments = api.load_model("fonts").config.segments
+    counts = [len(c) // 3 for s in model.shapes for c in s.contours]
+    assert clean.num_paths == 1 and model.num_paths >= 2
+    assert all(1 <= k <= segments for k in counts) and len(set(counts)) > 1  # merged per path, not padded
     assert model.to_svg() != clean.to_svg()
 
 
@@ -296,4 +300,6 @@ def test_untangle_removes_crossings_and_keeps_the_fill():
     check_clean_svg(out.to_svg())
     a, b = ink(vec.to_svg(), 4), ink(out.to_svg(), 4)
     assert (a != b).sum() <= 16  # at most the loop's pin hole, a pixel at 4x
-    assert untangle(VectorImage(64, 64, [VectorShape([square])])).shapes[0].contours[0] is not None
+    kept = untangle(VectorImage(64, 64, [VectorShape([square])]))  # nothing to untangle: left as it was
+    assert len(kept.shapes) == 1 and len(kept.shapes[0].contours) == 1
+    assert (ink(kept.to_svg(), 4) != ink(VectorImage(64, 64, [VectorShape([square])]).to_svg(), 4)).sum() == 0

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -31,7 +32,8 @@ from .raster import compiling
 from .runtime import resolve_device
 from .vector import VectorImage, simplify
 
-__all__ = ["VectorizeOptions", "decode", "encode", "interpolate", "load_model", "prior_latents", "sample", "vectorize"]
+__all__ = ["VectorizeOptions", "decode", "encode", "export", "fit_prior", "interpolate", "load_feature_net",
+           "load_model", "prior_latents", "sample", "train", "train_aux", "train_features", "vectorize"]
 
 
 def load_model(name_or_dir: str = DEFAULT_MODEL, device: str | torch.device = "auto"):
@@ -177,3 +179,175 @@ def _endpoint(x, model) -> torch.Tensor:
     if isinstance(x, (np.ndarray, torch.Tensor, Sequence)) and not isinstance(x, str) and np.asarray(x).ndim == 1:
         return _latents(x, model)[0]
     return infer.encode(model, [as_image(x)])[0]
+
+
+# --- models from images: training, fine-tuning, the latent prior and the auxiliary networks ---
+
+def train(data_dir, run_dir="runs/latest", model_config=None, train_config=None, *, init=None,
+          device: str | torch.device = "auto", val_dir=None, resume: bool = False, overwrite: bool = False,
+          epochs: float | None = None, on_event=None) -> Path:
+    """Train a model on a folder of images (``train.train``); returns the exported model folder.
+
+    ``model_config`` / ``train_config``: ``ModelConfig`` / ``TrainConfig`` or dicts of their
+    fields. ``init`` (a model or its name) fine-tunes: its weights and config, of which only
+    ``options.GROWABLE`` fields may differ in ``model_config`` (new paths start as copies).
+    ``resume`` / ``overwrite`` as ``train.prepare_run_dir`` says."""
+    from .config import ModelConfig, TrainConfig
+    from .model.pretrained import grow_state
+    from .options import GROWABLE
+    from .train import train as run_train
+
+    given = model_config.to_dict() if isinstance(model_config, ModelConfig) else dict(model_config or {})
+    tcfg = train_config if isinstance(train_config, TrainConfig) else TrainConfig.from_dict(train_config or {})
+    init_state = None
+    if init is not None:
+        if resume:
+            raise ValueError("init starts a new run and resume continues one: give one of them")
+        start = _model(init).cpu()
+        fixed = sorted(k for k in given if k not in GROWABLE and given[k] != start.config.to_dict().get(k))
+        if fixed:
+            raise ValueError(f"init takes the model's config (but {', '.join(GROWABLE)}); drop {', '.join(fixed)}")
+        mcfg = ModelConfig.from_dict({**start.config.to_dict(), **given})
+        init_state = grow_state(start.state_dict(), start.config, mcfg, tcfg.seed)
+    else:
+        mcfg = ModelConfig.from_dict(given)
+    dev = device if isinstance(device, torch.device) else resolve_device(device)
+    return run_train(data_dir, run_dir, mcfg, tcfg, device=dev, val_dir=val_dir, resume=resume,
+                     overwrite=overwrite, on_event=on_event, epochs=epochs, init_state=init_state)
+
+
+def _output_folder(output, overwrite: bool, source) -> bool:
+    """Whether ``output`` is the model's own folder ``source`` (updated in place, only with
+    ``overwrite``); any other output is made whole, and one that holds files only with
+    ``overwrite``. Checked before any work."""
+    from .model.pretrained import check_output_folder
+
+    if source is not None and Path(output).resolve() == Path(source).resolve():
+        if not overwrite:
+            raise ModelError(f"{output}: is the model's own folder; --overwrite updates it in place")
+        return True
+    check_output_folder(output, overwrite, *([source] if source is not None else []))
+    return False
+
+
+def _folder(model):
+    """The folder a model was loaded from (``None`` for a model built in memory)."""
+    from .model.pretrained import resolve_model
+
+    return resolve_model(model) if isinstance(model, str) else getattr(model, "folder", None)
+
+
+def _model_and_images(model, output, overwrite: bool, data_dir, emit):
+    """The model's folder, the model, whether ``output`` is that folder (checked first, before
+    any work) and ``data_dir``'s training images at the model's size, uint8."""
+    from .data.folder import load_folder, split_dir
+
+    source = _folder(model)
+    in_place = _output_folder(output, overwrite, source)
+    model = _model(model)
+    data, _ = load_folder(split_dir(data_dir, "train"), model.config.image_size, fit=model.config.fit,
+                          on_skip=lambda m: emit({"event": "skip", "message": m}))
+    return source, model, in_place, data
+
+
+def fit_prior(data_dir, model, output, *, components: int = 10, seed: int = 0, overwrite: bool = False,
+              on_event=None):
+    """Fit the latent density ``sample`` draws from to ``data_dir``'s images (``DATA/train``
+    when it exists) and write the model with it to ``output`` (the model's own folder: only
+    its prior, with ``overwrite``). Returns the ``LatentPrior``."""
+    from .files import replace_folder
+    from .model.pretrained import save_pretrained, stored_half
+    from .model.prior import fit_prior as fit
+    from .model.prior import posterior_means
+
+    emit = on_event or (lambda e: None)
+    source, model, in_place, data = _model_and_images(model, output, overwrite, data_dir, emit)
+    if components > max(1, len(data) // 2):
+        raise ValueError(f"components {components}: at most half the {len(data)} images")
+    emit({"event": "encode", "images": len(data)})
+    prior = fit(posterior_means(model, data), components, seed=seed, data=str(data_dir))
+    if in_place:
+        prior.save(output)
+    else:
+        model.latent_prior, half = prior, source is not None and stored_half(source)  # weights stay as stored
+        replace_folder(output, lambda folder: save_pretrained(model, folder, half=half))
+    return prior
+
+
+def train_aux(data_dir, model, output, *, images: int = 2048, steps: int = 3000, seed: int = 0,
+              overwrite: bool = False, on_event=None) -> dict:
+    """Train the segment-count predictor (paper sec. 3.3) of a model on a seeded subset of
+    ``images`` of ``data_dir`` and write the model with it to ``output`` (the model's own
+    folder only with ``overwrite``), with ``segments.json``. Returns that report."""
+    import json
+
+    from .files import atomic_write, replace_folder
+    from .model.pretrained import save_pretrained, stored_half
+    from .train_aux import AuxSettings, train_segment_predictor
+
+    emit = on_event or (lambda e: None)
+    source, model, in_place, data = _model_and_images(model, output, overwrite, data_dir, emit)
+    x = data[torch.randperm(len(data), generator=torch.Generator().manual_seed(seed))[:images]].float() / 255
+    emit({"event": "measure", "images": len(x), "paths": model.config.paths})
+    out, report = train_segment_predictor(model, x, AuxSettings(steps=steps, seed=seed),
+                                          on_step=lambda e: emit({"event": "step", **e}))
+    half = source is not None and stored_half(source)  # as stored: the VAE weights stay bit-identical
+
+    def write(folder) -> None:
+        save_pretrained(out, folder, half=half)
+        atomic_write(Path(folder) / "segments.json", json.dumps(report, indent=1) + "\n")
+
+    write(Path(output)) if in_place else replace_folder(output, write)
+    return report
+
+
+def export(run_dir, output, *, half: bool = False, overwrite: bool = False) -> tuple[Path, int]:
+    """The model of a run's latest checkpoint as a model folder (``pretrained.export_checkpoint``)."""
+    from .model.pretrained import export_checkpoint
+
+    return export_checkpoint(run_dir, output, half=half, overwrite=overwrite)
+
+
+def train_features(data_dir, output, *, size: int = 64, fit: str = "resize", steps: int = 2000, seed: int = 0,
+                   on_event=None):
+    """Train the feature net of ``eval --features`` on ``data_dir``'s training split and write
+    it to ``output``: a classifier when the folder layout names classes (with one more class
+    for junk images, outlier exposure), else an autoencoder; its test accuracy (or MSE) on
+    ``DATA/test`` is stored in its config. Returns the ``FeatureNet``."""
+    from .data.folder import folder_labels, load_folder, split_dir
+    from .errors import Im2VecError
+    from .model.features import FeatureConfig
+    from .train_features import JUNK, FeatureSettings, feature_net_score, train_feature_net
+
+    emit = on_event or (lambda e: None)
+    skip = lambda m: emit({"event": "skip", "message": m})  # noqa: E731
+    x, names = load_folder(split_dir(data_dir, "train"), size, fit=fit, on_skip=skip)
+    labels = folder_labels(names)
+    classes = sorted(set(labels[0])) + [JUNK] if labels else []  # JUNK: outlier exposure (train_features.py)
+    cfg = FeatureConfig(image_size=size, fit=fit, classes=classes, data=str(data_dir))
+    emit({"event": "data", "images": len(x), "classes": len(classes) - 1 if labels else 0,
+          "by": labels[1] if labels else None})
+    index = {c: i for i, c in enumerate(classes)}
+    y = torch.tensor([index[c] for c in labels[0]]) if labels else None
+    net = train_feature_net(x, y, cfg, FeatureSettings(steps=steps, seed=seed),
+                            on_step=lambda e: emit({"event": "step", **e}))
+    tx, tnames = load_folder(split_dir(data_dir, "test"), size, fit=fit, on_skip=skip)
+    if classes:
+        tlabels = folder_labels(tnames, key=labels[1])[0]
+        if any(c not in index for c in tlabels):
+            raise Im2VecError(f"{data_dir}: the test split has classes the training split has not")
+        net.config = dataclasses.replace(cfg, test_accuracy=feature_net_score(
+            net, tx, torch.tensor([index[c] for c in tlabels])))
+    else:
+        net.config = dataclasses.replace(cfg, test_mse=feature_net_score(net, tx, None))
+    emit({"event": "test", "images": len(tx), "accuracy": net.config.test_accuracy if classes else None,
+          "mse": None if classes else net.config.test_mse})
+    net.save(output)
+    return net
+
+
+def load_feature_net(folder):
+    """A feature net written by ``train_features`` (``model.features.FeatureNet``)."""
+    from .model.features import FeatureNet
+
+    return FeatureNet.load(folder)

@@ -188,7 +188,6 @@ def test_culled_nearest_edge_matches_dense(monkeypatch, grouped):
     g = torch.Generator().manual_seed(0)
     pts = torch.stack([star(20 + 5 * i, 22, 15, 6, 6, generator=g) for i in range(3)]) / 40  # (3, 36, 2)
     from im2vec_cli.raster.bezier import flatten_closed
-    from im2vec_cli.raster.coverage import edge_distance
 
     a = flatten_closed(pts * 40, 4)
     b = torch.roll(a, -1, 1)
@@ -199,8 +198,8 @@ def test_culled_nearest_edge_matches_dense(monkeypatch, grouped):
     d = (b - a).view(3, 1, 1, -1, 2)
     t = ((r * d).sum(-1) / (d * d).sum(-1)).clamp(0, 1)
     brute = (r - t.unsqueeze(-1) * d).norm(dim=-1).min(-1).values  # (3, 40, 40)
-    dense = edge_distance(a, b, nearest_edge_search(a, b, 40, 40, radius=math.inf)[0])
-    culled = edge_distance(a, b, nearest_edge_search(a, b, 40, 40, radius=3.0)[0])
+    dense = nearest_edge_search(a, b, 40, 40, radius=math.inf)[1]
+    culled = nearest_edge_search(a, b, 40, 40, radius=3.0)[1]
     near = brute <= 3.0
     assert torch.allclose(dense, brute, atol=1e-6)
     assert torch.allclose(culled[near], brute[near], atol=1e-6)
@@ -266,25 +265,6 @@ def test_gradcheck_grouped_shapes_evenodd():
         return render_coverage(p, size=12, tau=1.0, samples=3, fill_rule="evenodd", shape_index=[0, 0, 1])
 
     assert torch.autograd.gradcheck(f, (pts,), eps=1e-6, atol=1e-5)
-
-
-def test_closed_form_distance_gradient_matches_autograd():
-    # the custom backward against plain autograd through the chosen edge (edge_distance)
-    from im2vec_cli.raster.bezier import flatten_closed
-    from im2vec_cli.raster.coverage import edge_distance, nearest_distance
-
-    g = torch.Generator().manual_seed(2)
-    pts = torch.stack([star(20 + 3 * i, 21, 14, 7, 5, generator=g) for i in range(2)]) / 40
-    a = flatten_closed(pts * 40, 4).requires_grad_(True)
-    b = torch.roll(a, -1, 1)
-    weight = torch.randn(2, 40, 40, dtype=torch.float64, generator=g)
-    dist, idx = nearest_distance(a, b, 40, 40, radius=5.0)
-    near = torch.isfinite(dist)
-    ours_grad = torch.autograd.grad((torch.where(near, dist, 0) * weight).sum(), a)[0]
-    ref = edge_distance(a, b, idx)
-    assert torch.allclose(dist[near], ref[near])
-    ref_grad = torch.autograd.grad((torch.where(near, ref, 0) * weight).sum(), a)[0]
-    assert torch.allclose(ours_grad, ref_grad, atol=1e-9)
 
 
 def test_gradcheck_soft_composite():

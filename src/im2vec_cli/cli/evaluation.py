@@ -43,11 +43,11 @@ def _sweeps(model, files, ks) -> dict:
 def _sample_quality(model, features_dir, data_dir, samples, seed, prior, segments) -> dict:
     """``evaluate.sample_quality`` against a seeded subset of as many test images as samples
     (apart from ``--limit``), with the feature net's provenance."""
+    from .. import api
     from ..evaluate import eval_files, sample_quality
     from ..files import load_image
-    from ..model.features import FeatureNet
 
-    net = FeatureNet.load(features_dir)
+    net = api.load_feature_net(features_dir)
     pictures = [load_image(f) for f in eval_files(data_dir, samples, seed)]
     try:
         out = sample_quality(model, net, pictures, samples=samples, seed=seed, prior=prior, segments=segments)

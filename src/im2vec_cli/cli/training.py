@@ -35,20 +35,17 @@ def _configs(config_file, model_opts: dict, train_opts: dict):
     return ModelConfig.from_dict(m), TrainConfig.from_dict(t), m
 
 
-def _model_output(output: str, overwrite: bool, model_name: str) -> bool:
-    """Whether -o is the model's own folder (updated in place, only with --overwrite); any other
-    -o is made whole, and one that holds files only with --overwrite. Checked before the work."""
-    from pathlib import Path
-
-    from ..model.pretrained import check_output_folder, resolve_model
-
-    source = resolve_model(model_name)
-    if Path(output).resolve() == source.resolve():
-        if not overwrite:
-            raise Im2VecError(f"{output}: is the model's own folder; --overwrite updates it in place")
-        return True
-    check_output_folder(output, overwrite, source)
-    return False
+def _say(e: dict) -> None:
+    """Events of fit-prior and train-aux -> stderr lines."""
+    kind = e.get("event")
+    if kind == "skip":
+        warn(f"skipped {e['message']}")
+    elif kind == "encode":
+        click.echo(f"encoding {e['images']} images", err=True)
+    elif kind == "measure":
+        click.echo(f"measuring {e['images']} images x {e['paths']} paths", err=True)
+    elif kind == "step":
+        click.echo(f"step {e['step']}: fit {e['fit']:.4f}, held-out {e['val_fit']:.4f}", err=True)
 
 
 class _Progress:
@@ -126,27 +123,24 @@ def train(data_dir, run_dir, val_dir, config_file, arch, size, paths, latent, gr
     import os
     import signal
 
+    from .. import api
+    from ..options import GROWABLE
     from ..runtime import resolve_device
-    from ..train import train as run_train
 
     model_cfg, train_cfg, model_given = _configs(
         config_file, {"arch": arch, "image_size": size, "paths": paths, "latent": latent, "grouping": grouping},
         {"batch": batch, "steps": steps, "lr": lr, "beta": beta, "seed": seed, "workers": workers})
     dev = resolve_device(device)
-    init_state = None
+    start = None
     if init_model is not None:
         if resume:
             raise click.UsageError("--init starts a new run; --resume continues one: give one of them")
-        from ..config import ModelConfig
-        from ..model.pretrained import GROWABLE, grow_state
-
         fixed = sorted(set(model_given) - set(GROWABLE))
         if fixed:
             raise click.UsageError("--init takes the model options from the model (but " + ", ".join(GROWABLE)
                                    + "); drop " + ", ".join(fixed))
         start = load_model(init_model, "cpu", 0, raster_ok=True)
-        model_cfg = ModelConfig.from_dict({**start.config.to_dict(), **model_given})
-        init_state = grow_state(start.state_dict(), start.config, model_cfg, train_cfg.seed)
+        model_cfg = {k: v for k, v in model_given.items() if k in GROWABLE}
 
     def _term(signum, frame):  # `kill` (and SIGINT-ignoring background jobs) checkpoint like Ctrl-C
         raise KeyboardInterrupt
@@ -154,9 +148,8 @@ def train(data_dir, run_dir, val_dir, config_file, arch, size, paths, latent, gr
     signal.signal(signal.SIGTERM, _term)
     report = _Progress(dev)
     try:
-        out = run_train(data_dir, run_dir, model_cfg, train_cfg, device=dev, val_dir=val_dir, resume=resume,
-                        overwrite=overwrite,
-                        on_event=report, epochs=epochs, init_state=init_state)
+        out = api.train(data_dir, run_dir, model_cfg, train_cfg, init=start, device=dev, val_dir=val_dir,
+                        resume=resume, overwrite=overwrite, on_event=report, epochs=epochs)
     finally:
         report.close()
     if os.environ.get("RANK", "0") == "0":
@@ -178,33 +171,11 @@ def train_aux(data_dir, output, overwrite, images, steps, model_name, device, se
     Sweeps k for every path of DATA_DIR's images, fits loss(k) = a*exp(-b*k) + c per path
     code, and writes the model with the predictor to -o; then `--segments auto` works.
     """
-    import json
-    from pathlib import Path
+    from .. import api
 
-    import torch
-
-    from ..data.folder import load_folder, split_dir
-    from ..files import atomic_write, replace_folder
-    from ..model.pretrained import save_pretrained, stored_half
-    from ..train_aux import AuxSettings, train_segment_predictor
-
-    in_place = _model_output(output, overwrite, model_name)
     model = load_model(model_name, device, seed)
-    data, _ = load_folder(split_dir(data_dir, "train"), model.config.image_size, fit=model.config.fit,
-                          on_skip=lambda m: warn(f"skipped {m}"))
-    pick = torch.randperm(len(data), generator=torch.Generator().manual_seed(seed))[:images]
-    x = data[pick].float() / 255
-    click.echo(f"measuring {len(x)} images x {model.config.paths} paths", err=True)
-    out, report = train_segment_predictor(model, x, AuxSettings(steps=steps, seed=seed),
-                                          on_step=lambda e: click.echo(f"step {e['step']}: fit {e['fit']:.4f}, "
-                                                                       f"held-out {e['val_fit']:.4f}", err=True))
-    half = stored_half(model_name)
-
-    def write(folder: Path) -> None:
-        save_pretrained(out, folder, half=half)  # as stored: the VAE weights stay bit-identical
-        atomic_write(Path(folder) / "segments.json", json.dumps(report, indent=1) + "\n")
-
-    write(Path(output)) if in_place else replace_folder(output, write)
+    report = api.train_aux(data_dir, model, output, images=images, steps=steps, seed=seed, overwrite=overwrite,
+                           on_event=_say)
     click.echo(f"held-out fit (log MSE) {report['val_fit_log_mse']:.4f}; model written to {output}", err=True)
 
 
@@ -215,9 +186,9 @@ def train_aux(data_dir, output, overwrite, images, steps, model_name, device, se
 @click.option("--overwrite", is_flag=True, help="Replace -o whole when it holds files (its old card and metrics go too).")
 def export(run_dir, output, half, overwrite):
     """Export the model of a training run's latest checkpoint (e.g. after Ctrl-C)."""
-    from ..model.pretrained import export_checkpoint
+    from .. import api
 
-    out, step = export_checkpoint(run_dir, output, half=half, overwrite=overwrite)
+    out, step = api.export(run_dir, output, half=half, overwrite=overwrite)
     click.echo(f"exported step {step} to {out}", err=True)
 
 
@@ -236,24 +207,14 @@ def fit_prior_cmd(data_dir, output, overwrite, components, model_name, device, s
     Gaussian mixture to their posterior means; writes the model with latent_prior.safetensors
     and latent_prior.json to -o. `train` does this when it finishes.
     """
-    from ..data.folder import load_folder, split_dir
-    from ..files import replace_folder
-    from ..model.pretrained import save_pretrained, stored_half
-    from ..model.prior import fit_prior, posterior_means
+    from .. import api
 
-    in_place = _model_output(output, overwrite, model_name)
     model = load_model(model_name, device, seed, raster_ok=True)
-    data, _ = load_folder(split_dir(data_dir, "train"), model.config.image_size, fit=model.config.fit,
-                          on_skip=lambda m: warn(f"skipped {m}"))
-    if components > max(1, len(data) // 2):
-        raise click.UsageError(f"--components {components}: at most half the {len(data)} images")
-    click.echo(f"encoding {len(data)} images", err=True)
-    prior = fit_prior(posterior_means(model, data), components, seed=seed, data=str(data_dir))
-    if in_place:
-        prior.save(output)
-    else:
-        model.latent_prior, half = prior, stored_half(model_name)  # as stored: the weights stay bit-identical
-        replace_folder(output, lambda folder: save_pretrained(model, folder, half=half))
+    try:
+        prior = api.fit_prior(data_dir, model, output, components=components, seed=seed, overwrite=overwrite,
+                              on_event=_say)
+    except ValueError as exc:
+        raise click.UsageError(f"--{exc}") from None
     click.echo(f"mean log-likelihood {prior.config.log_likelihood:.1f} nats per image; "
                f"prior written to {output}", err=True)
 
@@ -275,36 +236,20 @@ def train_features(data_dir, output, size, fit, steps, seed):
     pattern images (outlier exposure), else an autoencoder. Its accuracy (or
     reconstruction MSE) on DATA_DIR/test is measured and stored in its config.
     """
-    import dataclasses
+    from .. import api
 
-    import torch
+    def say(e: dict) -> None:
+        kind = e["event"]
+        if kind == "skip":
+            warn(f"skipped {e['message']}")
+        elif kind == "data":
+            kind_of = f"a classifier of {e['classes']} classes (by {e['by']} name)" if e["by"] else "an autoencoder"
+            click.echo(f"training {kind_of} on {e['images']} images", err=True)
+        elif kind == "step" and e["step"] % 500 == 0:
+            click.echo(f"step {e['step']}: loss {e['loss']:.4f}", err=True)
+        elif kind == "test":
+            what = f"accuracy {e['accuracy']:.4f}" if e["accuracy"] is not None else f"reconstruction MSE {e['mse']:.5f}"
+            click.echo(f"test {what} on {e['images']} images", err=True)
 
-    from ..data.folder import folder_labels, load_folder, split_dir
-    from ..model.features import FeatureConfig
-    from ..train_features import JUNK, FeatureSettings, feature_net_score, train_feature_net
-
-    x, names = load_folder(split_dir(data_dir, "train"), size, fit=fit, on_skip=lambda m: warn(f"skipped {m}"))
-    labels = folder_labels(names)
-    classes = sorted(set(labels[0])) + [JUNK] if labels else []  # JUNK: outlier exposure (train_features.py)
-    cfg = FeatureConfig(image_size=size, fit=fit, classes=classes, data=str(data_dir))
-    kind = f"a classifier of {len(classes) - 1} classes (by {labels[1]} name)" if labels else "an autoencoder"
-    click.echo(f"training {kind} on {len(x)} images", err=True)
-    index = {c: i for i, c in enumerate(classes)}
-    y = torch.tensor([index[c] for c in labels[0]]) if labels else None
-    net = train_feature_net(x, y, cfg, FeatureSettings(steps=steps, seed=seed),
-                            on_step=lambda e: click.echo(f"step {e['step']}: loss {e['loss']:.4f}", err=True)
-                            if e["step"] % 500 == 0 else None)
-    tx, tnames = load_folder(split_dir(data_dir, "test"), size, fit=fit, on_skip=lambda m: warn(f"skipped {m}"))
-    if classes:
-        tlabels = folder_labels(tnames, key=labels[1])[0]
-        if any(c not in index for c in tlabels):
-            raise Im2VecError(f"{data_dir}: the test split has classes the training split has not")
-        acc = feature_net_score(net, tx, torch.tensor([index[c] for c in tlabels]))
-        net.config = dataclasses.replace(cfg, test_accuracy=acc)
-        click.echo(f"test accuracy {acc:.4f} on {len(tx)} images", err=True)
-    else:
-        mse = feature_net_score(net, tx, None)
-        net.config = dataclasses.replace(cfg, test_mse=mse)
-        click.echo(f"test reconstruction MSE {mse:.5f} on {len(tx)} images", err=True)
-    net.save(output)
+    api.train_features(data_dir, output, size=size, fit=fit, steps=steps, seed=seed, on_event=say)
     click.echo(f"feature net written to {output}", err=True)

@@ -14,6 +14,7 @@ from ..checkpoint import load_checkpoint
 from ..config import ModelConfig
 from ..errors import ModelError
 from ..files import atomic_write, holds_files, replace_folder
+from ..options import GROWABLE
 from . import build_model
 from .prior import LatentPrior
 
@@ -112,7 +113,7 @@ def from_pretrained(name_or_dir: str | os.PathLike = DEFAULT_MODEL, device: str 
     except RuntimeError as exc:
         first = str(exc).splitlines()[1].strip() if len(str(exc).splitlines()) > 1 else str(exc)
         raise ModelError(f"{weights}: weights do not match the config ({first})") from None
-    model.name = folder.name
+    model.name, model.folder = folder.name, folder
     model.latent_prior = LatentPrior.load(folder)  # None when the folder stores none
     if model.latent_prior is not None and model.latent_prior.latent != cfg.latent:
         raise ModelError(f"{folder}: latent prior is over {model.latent_prior.latent} dimensions, "
@@ -169,7 +170,6 @@ def check_output_folder(out_dir: str | Path, overwrite: bool, *inputs: str | Pat
         raise ModelError(f"{out_dir}: holds files; --overwrite replaces the folder whole")
 
 
-GROWABLE = ("paths", "grouping")  # ModelConfig keys a fine-tune (`train --init`) may change
 
 
 def grow_state(state: dict[str, torch.Tensor], old: ModelConfig, new: ModelConfig,

@@ -12,7 +12,7 @@ Speed and memory (issue "Foundation"):
 - the nearest edge is searched without autograd by fused ``torch.compile`` kernels over
   tiles, where only edges whose box comes within ``radius`` of the tile are tested; tiles
   are grouped by candidate count so that crowded tiles do not pad the others;
-- backward is closed form (``_SoftCoverage``, ``_NearestDistance``): only the pixels within
+- backward is closed form (``_SoftCoverage``): only the pixels within
   ``radius`` of an edge have a gradient, and each passes it to its one nearest edge, so
   autograd memory is O(N*H*W) and backward costs O(pixels in the band).
 """
@@ -270,71 +270,43 @@ def nearest_edge_search(
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Nearest edge to every pixel centre and its distance (no autograd).
 
-    The raster is cut into ``tile x tile`` tiles. An edge is a candidate for a tile when its
-    bounding box grown by ``radius`` meets the tile; the test is separable, so the per-tile
-    counts are one small batched matmul of row and column masks. Tiles with no candidate are
-    skipped; the others are grouped by candidate count (rounded up to a multiple of 8) and
-    each group is searched by one fused kernel, so a few crowded tiles do not pad the others.
+    The raster is cut into ``tile x tile`` tiles; an edge is a candidate for a tile when its
+    box grown by ``radius`` meets it (``_tile_masks``). Tiles with no candidate are skipped;
+    the others are grouped by candidate count (rounded up to a multiple of 8) and each group
+    is searched by one fused kernel, so a few crowded tiles do not pad the others.
 
     Args:
-        a, b: ``(N, E, 2)`` edge end points, pixel frame.
-        height, width: raster size.
+        a, b: ``(N, E, 2)`` edge end points, pixel frame; height, width: the raster size.
         radius: culling radius in pixels (``math.inf``: every edge is a candidate everywhere).
-        tile: tile side in pixels.
-        active: optional ``(N, E)`` bool; inactive edges are never chosen.
+        tile: tile side in pixels; active: optional ``(N, E)`` bool, inactive edges never chosen.
 
     Returns:
-        ``idx (N, H, W)`` long and ``dist (N, H, W)``. Where no edge comes within ``radius``
-        (or no edge is active), ``dist`` is ``inf`` and ``idx`` is 0.
+        ``idx (N, H, W)`` long and ``dist (N, H, W)``; ``inf`` and 0 where no active edge is near.
     """
     n, e, _ = a.shape
     dev, dt = a.device, a.dtype
     ny, nx = -(-height // tile), -(-width // tile)
     with torch.no_grad():
         grow = radius if math.isfinite(radius) else float(height + width) * 4  # every tile meets it
-        lo = torch.minimum(a, b) - grow  # (N, E, 2)
-        hi = torch.maximum(a, b) + grow
-        xs0 = torch.arange(nx, device=dev).to(dt) * tile + 0.5  # first and last pixel centre of a tile
-        ys0 = torch.arange(ny, device=dev).to(dt) * tile + 0.5
-        xs1, ys1 = (xs0 + tile - 1).clamp(max=width - 0.5), (ys0 + tile - 1).clamp(max=height - 0.5)
-        mx = (hi[:, None, :, 0] >= xs0[None, :, None]) & (lo[:, None, :, 0] <= xs1[None, :, None])  # (N, nx, E)
-        my = (hi[:, None, :, 1] >= ys0[None, :, None]) & (lo[:, None, :, 1] <= ys1[None, :, None])  # (N, ny, E)
-        if active is not None:
-            my &= active[:, None, :]
-        counts = torch.bmm(my.to(dt), mx.to(dt).transpose(1, 2)).round_().view(-1)  # (N*ny*nx,)
+        mx, my, counts = _tile_masks(a, b, height, width, tile, grow, active)
         tiles = torch.nonzero(counts).view(-1)  # (A,) active (path, tile row, tile col)
         # per tile, its row in out_i / out_d; row A is the answer for tiles without candidates
         pos = torch.full((n * ny * nx,), tiles.numel(), dtype=torch.long, device=dev)
         out_i = torch.zeros(tiles.numel() + 1, tile * tile, dtype=torch.long, device=dev)
         out_d = torch.full((tiles.numel() + 1, tile * tile), math.inf, dtype=dt, device=dev)
         if tiles.numel():
-            d = b - a
-            len2 = (d * d).sum(-1)
-            inv = torch.where(len2 > 0, 1.0 / len2.clamp_min(_EPS), torch.zeros_like(len2))
-            table = torch.stack([a[..., 0], a[..., 1], d[..., 0], d[..., 1], inv], -1)  # (N, E, 5)
-            pad = torch.tensor([_FAR, _FAR, 0.0, 0.0, 0.0], dtype=dt, device=dev).expand(n, 1, 5)
-            table = torch.cat([table, pad], 1).view(-1, 5)  # (N*(E+1), 5): row E parked far away
-            cnt = counts[tiles].long()
-            cnt, perm = torch.sort(cnt, stable=True)  # tiles of one group become a contiguous run
+            cnt, perm = torch.sort(counts[tiles].long(), stable=True)  # tiles of one group: a contiguous run
             tiles = tiles[perm]
             tn, tr, tc = tiles // (ny * nx), tiles // nx % ny, tiles % nx
-            m = my[tn, tr] & mx[tn, tc]  # (A, E)
             cap = ((cnt + 7) // 8 * 8).clamp_(max=e)  # (A,) candidate slots, ascending
-            # candidates first, in edge order (a compaction: every group takes its first K slots)
-            kmax = int(cap[-1])
-            slot_of = torch.where(m, m.cumsum(1) - 1, kmax)  # column kmax takes the non-candidates
-            order = torch.full((m.shape[0], kmax + 1), e, dtype=torch.long, device=dev)
-            order.scatter_(1, slot_of, torch.arange(e, device=dev).expand_as(slot_of))
-            if tiles.numel() * tile * tile * e <= _SMALL_SEARCH:  # one group: fewer calls beat less padding
-                groups = [(kmax, tiles.numel())]
-            else:
-                caps, runs = torch.unique_consecutive(cap, return_counts=True)
-                groups = list(zip(caps.tolist(), runs.tolist()))
-            r2 = torch.tensor(grow * grow, dtype=dt, device=dev)
-            num_e = torch.tensor(e, device=dev)  # a tensor: a new segment count must not recompile
+            order = _candidates_first(my[tn, tr] & mx[tn, tc], int(cap[-1]))  # (A, K+1)
+            groups = _groups(cap, tiles.numel() * tile * tile * e)
             local = torch.arange(tile * tile, device=dev)
             py = ((tr * tile).unsqueeze(1) + local // tile).to(dt).add_(0.5).unsqueeze(-1)  # (A, tile^2, 1)
             px = ((tc * tile).unsqueeze(1) + local % tile).to(dt).add_(0.5).unsqueeze(-1)
+            table = _edge_table(a, b)
+            r2 = torch.tensor(grow * grow, dtype=dt, device=dev)
+            num_e = torch.tensor(e, device=dev)  # a tensor: a new segment count must not recompile
             start = 0
             for k, run in groups:
                 chunk = _chunk_rows(run, tile * tile * k)
@@ -346,6 +318,55 @@ def nearest_edge_search(
                 start += run
             pos[tiles] = torch.arange(tiles.numel(), device=dev)
         return _untile(out_i, out_d, pos.view(n, ny, nx), tile, height, width)
+
+
+def _groups(cap: torch.Tensor, pairs: int) -> list[tuple[int, int]]:
+    """``(candidate slots K, tiles)`` runs of the ascending ``cap``: one group when the search
+    is small (``pairs`` pixel x edge tests; fewer calls beat less padding)."""
+    if pairs <= _SMALL_SEARCH:
+        return [(int(cap[-1]), cap.numel())]
+    caps, runs = torch.unique_consecutive(cap, return_counts=True)
+    return list(zip(caps.tolist(), runs.tolist()))
+
+
+def _tile_masks(a, b, height: int, width: int, tile: int, grow: float, active):
+    """Which edges' boxes, grown by ``grow``, meet each tile column and row: ``mx (N, nx, E)``,
+    ``my (N, ny, E)`` (inactive edges left out), and the candidates of every tile,
+    ``counts (N*ny*nx,)``, as one batched matmul of the two (the test is separable)."""
+    dev, dt = a.device, a.dtype
+    ny, nx = -(-height // tile), -(-width // tile)
+    lo = torch.minimum(a, b) - grow  # (N, E, 2)
+    hi = torch.maximum(a, b) + grow
+    xs0 = torch.arange(nx, device=dev).to(dt) * tile + 0.5  # first and last pixel centre of a tile
+    ys0 = torch.arange(ny, device=dev).to(dt) * tile + 0.5
+    xs1, ys1 = (xs0 + tile - 1).clamp(max=width - 0.5), (ys0 + tile - 1).clamp(max=height - 0.5)
+    mx = (hi[:, None, :, 0] >= xs0[None, :, None]) & (lo[:, None, :, 0] <= xs1[None, :, None])  # (N, nx, E)
+    my = (hi[:, None, :, 1] >= ys0[None, :, None]) & (lo[:, None, :, 1] <= ys1[None, :, None])  # (N, ny, E)
+    if active is not None:
+        my &= active[:, None, :]
+    counts = torch.bmm(my.to(dt), mx.to(dt).transpose(1, 2)).round_().view(-1)  # (N*ny*nx,)
+    return mx, my, counts
+
+
+def _candidates_first(m: torch.Tensor, kmax: int) -> torch.Tensor:
+    """Each tile's candidate edges first, in edge order (a compaction, so that every group
+    takes its first K slots): ``m (A, E)`` bool -> ``(A, kmax + 1)`` edge ids, ``E`` past them."""
+    e = m.shape[1]
+    slot_of = torch.where(m, m.cumsum(1) - 1, kmax)  # column kmax takes the non-candidates
+    order = torch.full((m.shape[0], kmax + 1), e, dtype=torch.long, device=m.device)
+    return order.scatter_(1, slot_of, torch.arange(e, device=m.device).expand_as(slot_of))
+
+
+def _edge_table(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """``(N*(E+1), 5)`` rows ``(ax, ay, dx, dy, 1/|d|^2)`` per edge, row ``E`` of each set an
+    edge parked far away (what a padding slot reads)."""
+    n, dt = a.shape[0], a.dtype
+    d = b - a
+    len2 = (d * d).sum(-1)
+    inv = torch.where(len2 > 0, 1.0 / len2.clamp_min(_EPS), torch.zeros_like(len2))
+    table = torch.stack([a[..., 0], a[..., 1], d[..., 0], d[..., 1], inv], -1)  # (N, E, 5)
+    pad = torch.tensor([_FAR, _FAR, 0.0, 0.0, 0.0], dtype=dt, device=a.device).expand(n, 1, 5)
+    return torch.cat([table, pad], 1).view(-1, 5)
 
 
 @maybe_compile(dynamic={0: (0,), 1: (0,), 2: (0,)})
@@ -377,32 +398,6 @@ def _sum_into_edges(a, edge, grads):
     n, e, _ = a.shape
     out = torch.zeros(n * e, 4, dtype=a.dtype, device=a.device).index_add_(0, edge, grads).view(n, e, 4)
     return out[..., :2], out[..., 2:]
-
-
-class _NearestDistance(torch.autograd.Function):
-    """Distance to the nearest edge, with the closed-form gradient of that one edge.
-
-    Backward visits only pixels whose incoming gradient is non-zero and finite distance,
-    and sums their contributions into the edges with one ``index_add_``. Autograd keeps
-    ``idx`` and ``dist``: O(N*H*W) memory.
-    """
-
-    @staticmethod
-    def forward(ctx, a, b, height, width, radius, active):
-        idx, dist = nearest_edge_search(a, b, height, width, radius=radius, active=active)
-        ctx.save_for_backward(a, b, idx, dist)
-        ctx.mark_non_differentiable(idx)
-        return dist, idx
-
-    @staticmethod
-    def backward(ctx, grad_dist, _grad_idx):
-        a, b, idx, dist = ctx.saved_tensors
-        g = grad_dist.reshape(-1)
-        sel = torch.nonzero((g != 0) & torch.isfinite(dist.reshape(-1))).view(-1)  # (M,) flat pixels
-        h, w = idx.shape[1:]
-        edge, grads = _band_grads(a.reshape(-1, 2), b.reshape(-1, 2), idx.reshape(-1), sel, g, h * w, w,
-                                   torch.tensor(a.shape[1], device=a.device))
-        return (*_sum_into_edges(a, edge, grads), None, None, None, None)
 
 
 class _SoftCoverage(torch.autograd.Function):
@@ -485,74 +480,19 @@ def _gather_closed_form(a2, b2, idx, sel, hw: int, width: int, num_edges, g_sel)
     return edge, _closed_form(a2[edge], b2[edge], sel % hw, width, g_sel)
 
 
-@maybe_compile(dynamic={0: (0,), 1: (0,), 2: (0,), 3: (0,), 4: (0,)})
-def _band_grads(a2, b2, idx, sel, g, hw: int, width: int, num_edges):
-    """Closed-form gradients of the pixels ``sel (M,)`` of a flat ``(N*H*W,)`` raster.
-
-    Args: a2, b2 ``(N*E, 2)``; idx ``(N*H*W,)`` nearest edge; g ``(N*H*W,)`` dL/d(distance).
-    Returns ``edge (M,)`` rows of ``a2`` and ``grads (M, 4)``.
-    """
-    return _gather_closed_form(a2, b2, idx, sel, hw, width, num_edges, g[sel])
-
-
 @maybe_compile(dynamic={0: (0,), 1: (0,), 2: (0,), 3: (0,), 4: (0,), 5: (0,), 6: (0,)})
 def _band_grads_cov(a2, b2, idx, sel, grad_cov, cov, wind, hw: int, width: int, num_edges, inv_tau,
                     evenodd: bool):
-    """As ``_band_grads``, from dL/d(coverage): ``dL/dd = dL/dc * c (1 - c) * sign / tau``."""
+    """Closed-form gradients of the pixels ``sel (M,)`` of a flat ``(N*H*W,)`` raster, from
+    dL/d(coverage): ``dL/dd = dL/dc * c (1 - c) * sign / tau``.
+
+    Args: a2, b2 ``(N*E, 2)``; idx ``(N*H*W,)`` nearest edge.
+    Returns ``edge (M,)`` rows of ``a2`` and ``grads (M, 4)``.
+    """
     c = cov[sel]
     inside = inside_from_winding(wind[sel], "evenodd" if evenodd else "nonzero")
     g = grad_cov[sel] * c * (1 - c) * torch.where(inside, inv_tau, -inv_tau)
     return _gather_closed_form(a2, b2, idx, sel, hw, width, num_edges, g)
-
-
-def nearest_distance(
-    a: torch.Tensor,
-    b: torch.Tensor,
-    height: int,
-    width: int,
-    *,
-    radius: float = math.inf,
-    active: torch.Tensor | None = None,
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """Distance from every pixel centre to the nearest edge, differentiable in ``a`` and ``b``.
-
-    Args and culling as in ``nearest_edge_search``.
-
-    Returns:
-        ``dist (N, H, W)`` (``inf`` beyond ``radius``) and ``idx (N, H, W)``.
-    """
-    return _NearestDistance.apply(a, b, height, width, radius, active)
-
-
-def edge_distance(a: torch.Tensor, b: torch.Tensor, idx: torch.Tensor) -> torch.Tensor:
-    """Distance from every pixel centre to one chosen edge, differentiable in ``a`` and ``b``.
-
-    Args:
-        a, b: ``(N, E, 2)`` edge end points, pixel frame.
-        idx: ``(N, H, W)`` chosen edge per pixel.
-
-    Returns:
-        ``(N, H, W)`` distances in pixels.
-    """
-    return _edge_distance(a, b, idx)
-
-
-@maybe_compile
-def _edge_distance(a, b, idx):
-    n, h, w = idx.shape
-    flat = idx.reshape(n, h * w, 1).expand(n, h * w, 2)
-    ea = torch.gather(a, 1, flat)  # (N, HW, 2)
-    eb = torch.gather(b, 1, flat)
-    ys = torch.arange(h, dtype=a.dtype, device=a.device).add(0.5)
-    xs = torch.arange(w, dtype=a.dtype, device=a.device).add(0.5)
-    grid = torch.stack(torch.meshgrid(xs, ys, indexing="xy"), -1).reshape(1, h * w, 2)  # (1, HW, 2)
-    d = eb - ea
-    r = grid - ea
-    len2 = (d * d).sum(-1)
-    t = ((r * d).sum(-1) / len2.clamp_min(_EPS)).clamp(0.0, 1.0)  # (N, HW)
-    q = r - t.unsqueeze(-1) * d
-    dist = torch.sqrt((q * q).sum(-1) + _EPS)
-    return dist.reshape(n, h, w)
 
 
 @maybe_compile(dynamic={0: (0,), 1: (0,)})
