@@ -30,6 +30,7 @@ LAYERS = {  # first component under im2vec_cli -> layer; higher may import lower
 SIBLINGS_APART = {("model", "data"), ("data", "model")}
 CLI_NEVER = {"model", "raster", "train", "train_aux", "train_features", "refine", "infer"}  # the CLI only parses
 MAX_LINES = 60
+MAX_MODULE_LINES = 400
 LONG: dict[str, str] = {}  # function -> why it stays long (none now)
 
 
@@ -154,6 +155,12 @@ def test_functions_are_short(path):
             if node.end_lineno - node.lineno + 1 > MAX_LINES and key not in LONG:
                 long.append(f"{key} ({node.end_lineno - node.lineno + 1} lines)")
     assert long == []
+
+
+@pytest.mark.parametrize("path", [p for p, _ in modules()], ids=lambda p: str(p.relative_to(SRC)))
+def test_modules_are_short(path):
+    """A module is one idea: at most MAX_MODULE_LINES lines (split it into a package when it grows)."""
+    assert len(path.read_text().splitlines()) <= MAX_MODULE_LINES
 
 
 def test_readme_is_short_and_every_link_in_the_docs_resolves():

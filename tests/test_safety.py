@@ -33,7 +33,7 @@ def _images(folder, n):
 # --- no work overwritten without a flag ---------------------------------------------------
 
 def test_a_run_folder_is_continued_or_started_over_only_when_asked(tmp_path):
-    from im2vec_cli.train import prepare_run_dir
+    from im2vec_cli.checkpoint import prepare_run_dir
 
     run = tmp_path / "run"
     prepare_run_dir(run, resume=False, overwrite=False)  # a fresh folder is made
@@ -329,7 +329,7 @@ def test_dashes_are_bounded_before_they_are_made():
 def test_banded_point_winding_is_the_brute_force_answer():
     import torch
 
-    from im2vec_cli.raster.coverage import _probes, point_winding, point_winding_banded
+    from im2vec_cli.raster.winding import _probes, point_winding, point_winding_banded
 
     g = torch.Generator().manual_seed(0)
     for edges, spread in ((40, 100.0), (600, 30.0)):

@@ -14,7 +14,8 @@ import torch
 
 from im2vec_cli import runtime
 from im2vec_cli.model.vae import Im2Vec
-from im2vec_cli.refine import Refinement, RefineSettings, _box3
+from im2vec_cli.refine import Refinement, RefineSettings
+from im2vec_cli.refine.core import _box3
 from im2vec_cli.vector import VectorImage, VectorShape, cairo, fill_vector, rasterize_svg, to_svg
 from tests.helpers import TINY, circle, make_tiny_model, png, polyline_as_cubic, run
 

@@ -191,7 +191,7 @@ def train(data_dir, run_dir="runs/latest", model_config=None, train_config=None,
     ``model_config`` / ``train_config``: ``ModelConfig`` / ``TrainConfig`` or dicts of their
     fields. ``init`` (a model or its name) fine-tunes: its weights and config, of which only
     ``options.GROWABLE`` fields may differ in ``model_config`` (new paths start as copies).
-    ``resume`` / ``overwrite`` as ``train.prepare_run_dir`` says."""
+    ``resume`` / ``overwrite`` as ``checkpoint.prepare_run_dir`` says."""
     from .config import ModelConfig, TrainConfig
     from .model.pretrained import grow_state
     from .options import GROWABLE

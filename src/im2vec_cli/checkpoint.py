@@ -7,13 +7,14 @@ Exported model folders (``save_pretrained`` / ``from_pretrained``) live in ``mod
 from __future__ import annotations
 
 import io
+import os
 import pickle
 import warnings
 from pathlib import Path
 
 import torch
 
-from .errors import ModelError
+from .errors import Im2VecError, ModelError
 from .files import atomic_write
 
 
@@ -47,3 +48,32 @@ def load_checkpoint(path: str | Path) -> dict:
         if not isinstance(state.get(key), kind):
             raise ModelError(f"{path}: not a checkpoint ({key!r} missing or not a {kind.__name__})")
     return state
+
+
+RUN_FILES = ("checkpoint.pt", "metrics.jsonl", "train_config.json", "latent_prior.json", "latent_prior.safetensors",
+             "model", "preview_*.png")  # what a run writes: a new run in its folder starts without them
+
+
+def prepare_run_dir(run_dir: Path, resume: bool, overwrite: bool, data_dir: str | Path | None = None) -> None:
+    """Check ``run_dir`` before any work: ``resume`` needs a checkpoint; a run there is kept
+    unless ``overwrite`` (then its files go, so that old and new never mix)."""
+    import shutil
+
+    if resume and overwrite:
+        raise Im2VecError("resume continues a run and overwrite starts it over: give one of them")
+    if os.path.lexists(run_dir) and not run_dir.is_dir():
+        raise Im2VecError(f"{run_dir}: not a folder")
+    if data_dir is not None and Path(data_dir).resolve() in [run_dir.resolve(), *run_dir.resolve().parents]:
+        raise Im2VecError(f"{run_dir}: inside the training images' folder {data_dir} (its previews would become "
+                          "training images); give the run a folder outside it")
+    found = sorted(p for pattern in RUN_FILES for p in run_dir.glob(pattern)) if run_dir.is_dir() else []
+    if resume:
+        if not (run_dir / "checkpoint.pt").is_file():
+            raise Im2VecError(f"{run_dir}: no checkpoint.pt to resume from")
+    elif found and not overwrite:
+        raise Im2VecError(f"{run_dir}: holds a training run ({found[0].name}, ...); --resume continues it, "
+                          "--overwrite starts it over, --out names another folder")
+    elif found:
+        for p in found:
+            shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink()
+    run_dir.mkdir(parents=True, exist_ok=True)

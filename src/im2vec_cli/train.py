@@ -29,9 +29,9 @@ import torch
 import torch.distributed as dist
 from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
 
-from .checkpoint import load_checkpoint, save_checkpoint
+from .checkpoint import load_checkpoint, prepare_run_dir, save_checkpoint
 from .config import ModelConfig, TrainConfig
-from .data.folder import load_folder, split_indices
+from .data.folder import find_split_dirs, load_folder, split_indices
 from .errors import DataError, Im2VecError, TrainingError
 from .files import atomic_write, encode_png
 from .model import build_model
@@ -42,8 +42,6 @@ from .model.vae import Im2Vec
 from .optim import Lookahead
 
 MAX_NONFINITE_IN_A_ROW = 20  # skipped steps before training stops with an error
-RUN_FILES = ("checkpoint.pt", "metrics.jsonl", "train_config.json", "latent_prior.json", "latent_prior.safetensors",
-             "model", "preview_*.png")  # what a run writes: a new run in its folder starts without them
 MIN_IMAGES = 2  # one to train on, one to validate
 PRIOR_MIN_IMAGES = 2  # training images a latent prior is fitted to (GaussianMixture needs two)
 VAL_IMAGES = 512  # validation images, spread over the folder (sorted by class or family)
@@ -121,13 +119,6 @@ def setup_distributed(device: torch.device) -> tuple[torch.device, int, int]:
     if dist.is_available() and dist.is_initialized():
         return device, dist.get_rank(), dist.get_world_size()
     return device, 0, 1
-
-
-def find_split_dirs(data_dir: Path) -> tuple[Path, Path | None]:
-    """``DATA/train`` and ``DATA/val`` when the folder was built by ``im2vec data``."""
-    if (data_dir / "train").is_dir() and (data_dir / "val").is_dir():
-        return data_dir / "train", data_dir / "val"
-    return data_dir, None
 
 
 def load_splits(data_dir: str | Path | None, val_dir: str | Path | None, model_cfg: ModelConfig,
@@ -348,31 +339,6 @@ def train(
     if world > 1:
         dist.barrier()
     return run_dir / "model"
-
-
-def prepare_run_dir(run_dir: Path, resume: bool, overwrite: bool, data_dir: str | Path | None = None) -> None:
-    """Check ``run_dir`` before any work: ``resume`` needs a checkpoint; a run there is kept
-    unless ``overwrite`` (then its files go, so that old and new never mix)."""
-    import shutil
-
-    if resume and overwrite:
-        raise Im2VecError("resume continues a run and overwrite starts it over: give one of them")
-    if os.path.lexists(run_dir) and not run_dir.is_dir():
-        raise Im2VecError(f"{run_dir}: not a folder")
-    if data_dir is not None and Path(data_dir).resolve() in [run_dir.resolve(), *run_dir.resolve().parents]:
-        raise Im2VecError(f"{run_dir}: inside the training images' folder {data_dir} (its previews would become "
-                          "training images); give the run a folder outside it")
-    found = sorted(p for pattern in RUN_FILES for p in run_dir.glob(pattern)) if run_dir.is_dir() else []
-    if resume:
-        if not (run_dir / "checkpoint.pt").is_file():
-            raise Im2VecError(f"{run_dir}: no checkpoint.pt to resume from")
-    elif found and not overwrite:
-        raise Im2VecError(f"{run_dir}: holds a training run ({found[0].name}, ...); --resume continues it, "
-                          "--overwrite starts it over, --out names another folder")
-    elif found:
-        for p in found:
-            shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink()
-    run_dir.mkdir(parents=True, exist_ok=True)
 
 
 def fit_run_prior(model: torch.nn.Module, train_x: torch.Tensor, data: str, step: int, seed: int) -> LatentPrior:

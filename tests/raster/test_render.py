@@ -161,7 +161,7 @@ def test_same_contours_evenodd_overlap_is_hole():
 def test_winding_scanline_matches_bruteforce(impl):
     # the eager per-crossing count and the compiled kernel's dense one, on edges that leave the
     # raster on every side, and a horizontal one (which crosses no row)
-    from im2vec_cli.raster.coverage import _winding, _winding_sparse
+    from im2vec_cli.raster.winding import _winding, _winding_sparse
 
     g = torch.Generator().manual_seed(3)
     verts = torch.rand(3, 17, 2, generator=g, dtype=torch.float64) * 30 - 5

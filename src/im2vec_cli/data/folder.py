@@ -88,6 +88,13 @@ def hash_unit(key: str) -> float:
     return int(hashlib.sha256(key.encode()).hexdigest()[:8], 16) / 0xFFFFFFFF
 
 
+def find_split_dirs(data_dir: Path) -> tuple[Path, Path | None]:
+    """``DATA/train`` and ``DATA/val`` when the folder was built by ``im2vec data``."""
+    if (data_dir / "train").is_dir() and (data_dir / "val").is_dir():
+        return data_dir / "train", data_dir / "val"
+    return data_dir, None
+
+
 def split_dir(root: str | Path, split: str) -> Path:
     """``root/split`` when that folder exists (a dataset made by ``im2vec data``), else ``root``."""
     root = Path(root)

@@ -6,7 +6,7 @@ This package imports nothing of im2vec's above it.
 from ._compile import compile_enabled, compiling, set_compile
 from .bezier import cubic_at, flatten_closed, line_controls, polygon_area, segment_controls, subdivide_to
 from .composite import composite_over, composite_soft
-from .coverage import inside_from_winding, winding_number
+from .coverage import inside_from_winding
 from .pyramid import gaussian_pyramid, pyramid_l2, pyramid_sizes
 from .render import (
     PYRAMID_COARSE,
@@ -17,6 +17,7 @@ from .render import (
     render_pyramid,
     render_supersampled,
 )
+from .winding import winding_number
 
 __all__ = [
     "PYRAMID_COARSE", "RasterSettings", "Rasterizer", "compile_enabled", "compiling", "composite_over", "composite_soft",

@@ -20,8 +20,9 @@ from torch import nn
 from ..config import PYRAMID_MODES
 from .bezier import flatten_closed
 from .composite import composite_over, composite_soft
-from .coverage import _FAR, boundary_edges, edge_boundary, soft_coverage, winding_number
+from .coverage import soft_coverage
 from .pyramid import gaussian_pyramid, pyramid_sizes
+from .winding import _FAR, boundary_edges, edge_boundary, winding_number
 
 
 def _size(size: int | Sequence[int]) -> tuple[int, int]:

@@ -1,0 +1,147 @@
+"""The stages of refinement of the model's paths, as the methods of ``Refinement``."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+from ..frame import Placement
+from ..infer import model_input, segment_counts, to_vector
+from ..model.vae import Im2Vec
+from ..optim import Adam
+from ..raster import flatten_closed, pyramid_l2, render_pyramid
+from ..vector import VectorImage, VectorShape, fill_vector, resolve_overlaps, simplify
+from ..vector.fit import split_segments
+from ..vector.outline import Corners
+from .core import _box3, _Fitter, _Progress
+from .settings import RefineSettings
+
+
+class Refinement:
+    """The refinement of a batch of images of one size, stage by stage (``refine_batch``
+    runs them in order). Every stage takes and returns one item per image (or per ``index``,
+    the images it is given), so that one render per step serves the whole batch.
+
+    Holds the model (frozen while it runs), the fit targets ``(B, 3, h, w)`` at the fit size,
+    and two objectives: ``fitter`` with the model's lines per cubic for the latent and point
+    stages, ``fine`` with ``polish_samples`` that judges results and fits the polish.
+    """
+
+    def __init__(self, model: Im2Vec, images: list[torch.Tensor], settings: RefineSettings,
+                 on_step: Callable[[dict], None] | None = None):
+        s = self.s = settings
+        self.model, self.images, self.on_step = model, images, on_step
+        self.device = next(model.parameters()).device
+        _, h, w = images[0].shape
+        if any(tuple(im.shape) != (3, h, w) for im in images):
+            raise ValueError("a refinement batch needs images of one size")
+        target = torch.stack(images).to(self.device)
+        if max(h, w) > s.max_side:
+            f = s.max_side / max(h, w)
+            target = F.interpolate(target, size=(max(4, round(h * f)), max(4, round(w * f))), mode="area")
+        self.fitter = _Fitter(target, model.config.samples, s)
+        self.fine = _Fitter(target, max(s.polish_samples, model.config.samples), s)
+
+    def encode(self, index: list[int], segments, quality) -> tuple[torch.Tensor, Placement, int | torch.Tensor | None]:
+        """The amortised guess of the images ``index``: ``mu (A, D)``, the placement (one for
+        the batch: its images share a size), and the segments to decode with."""
+        xs, places = zip(*(model_input(self.model, self.images[i]) for i in index))
+        with torch.no_grad():
+            mu, _ = self.model.encode(torch.stack(xs).to(self.device))
+            return mu, places[0], segment_counts(self.model, mu, segments, quality)
+
+    def fit_latent(self, mu: torch.Tensor, k, place: Placement, index: list[int]) -> tuple[torch.Tensor, list[int]]:
+        """Stage 1: Adam on the latents (the shapes stay on the model's manifold), at ``tau_start``.
+
+        Each latent stops when its own loss converges. Returns the best latents (``mu`` itself
+        where no step improves on it) and the steps taken by each."""
+        s = self.s
+        z = mu.clone().requires_grad_(True)
+        opt = Adam([{"params": [z], "lr": s.latent_lr}])
+        progress = _Progress(len(index), s)
+        best_z = z.detach().clone()
+        rows_all = torch.tensor(index, device=z.device)
+        for i in range(s.latent_steps):
+            sel = torch.tensor(progress.live, device=z.device)
+            kk = k[sel] if isinstance(k, torch.Tensor) else k
+            dec = self.model.decode(z[sel], kk)
+            sidx = None if dec.shape_index is None else dec.shape_index.expand(len(sel), -1)
+            renders = render_pyramid(place.model_to_input(dec.points), dec.colors, dec.depth, size=self.fitter.size,
+                                     levels=s.levels, tau=s.tau_start, fill_rule=dec.fill_rule, shape_index=sidx,
+                                     counts=dec.counts, samples=self.fitter.samples, composite="over")
+            loss = pyramid_l2(renders, [lvl[rows_all[sel]] for lvl in self.fitter.target], reduction="none")
+            opt.zero_grad()
+            loss.sum().backward()
+            opt.step()
+            for _, j in progress.record(loss.tolist())[0]:
+                best_z[j] = z[j].detach()
+            if self.on_step:
+                self.on_step({"stage": "latent", "step": i, "loss": float(loss.detach().mean()), "images": len(sel)})
+            if not progress.live:
+                break
+        return best_z, [len(h) for h in progress.hist]
+
+    def decode(self, z: torch.Tensor, k, place: Placement, max_paths: int | None, index: list[int]) -> list[VectorImage]:
+        """The paths of each latent in the input's frame, overlaps resolved against its input (once)."""
+        with torch.no_grad():
+            dec = self.model.decode(z, k)
+            return [resolve_overlaps(to_vector(dec, a, place, max_paths=max_paths), self.images[i])
+                    for a, i in enumerate(index)]
+
+    def fit_points(self, vecs: list[VectorImage], index: list[int]) -> tuple[list[VectorImage], list[int]]:
+        """Stage 2: control points and colours (learned-colour models only), tau annealed."""
+        learn_colors = not self.model.palette.numel()
+        return self.fitter.fit_points(vecs, self.s.point_steps, self.s.tau_start, learn_colors, "points", self.on_step,
+                                      index=index)
+
+    def prune(self, vecs: list[VectorImage], index: list[int]) -> list[VectorImage]:
+        """Drop paths that do not change the result (``_Fitter.prune``)."""
+        return [self.fitter.prune(v, self.s.prune_tol, i) for v, i in zip(vecs, index)]
+
+    def simplify_and_polish(self, vecs: list[VectorImage], index: list[int]) -> tuple[list[VectorImage], list[int]]:
+        """Stage 3: merge segments within ``simplify_tol`` px, then a short points-only polish."""
+        if self.s.simplify_tol <= 0:
+            return vecs, [0] * len(vecs)
+        return self.fine.fit_points([simplify(v, self.s.simplify_tol) for v in vecs], self.s.polish_steps,
+                                    self.s.tau_end, False, "polish", self.on_step, index=index)
+
+    def polish_outline(self, vecs: list[VectorImage], flags: list[Corners], index: list[int]) -> list[VectorImage]:
+        """Clean outlines: points and colours polished for ``outline_steps``, smooth joins kept smooth."""
+        return self.fine.fit_points(vecs, self.s.outline_steps, self.s.outline_tau, True, "outline", self.on_step,
+                                    smooth=flags, index=index)[0]
+
+    def split_where_wrong(self, vec: VectorImage, flags: Corners, row: int) -> tuple[VectorImage, Corners, int]:
+        """Halve every segment along which the render still differs from the input ``row`` by
+        more than ``split_error`` (mean squared, over the pixels the segment passes and their
+        neighbours, cairo at the input's size; scaled by ``(tolerance / 0.5)^2``): the polish
+        then has the points it lacked there.
+
+        Returns the new image, its corner flags and the segments split."""
+        image = self.images[row]
+        _, h, w = image.shape
+        got = fill_vector(vec, w, h)  # (H, W, 3): cairo, as rasterize_svg(vec.to_svg(3)) draws it
+        err = _box3(((got - image.permute(1, 2, 0).double().cpu().numpy()) ** 2).sum(-1))
+        limit = self.s.split_error * (self.s.tolerance / 0.5) ** 2  # a looser tolerance splits less
+        shapes, out_flags, count = [], [], 0
+        for sh, fl in zip(vec.shapes, flags):
+            cs, fs = [], []
+            for c, f in zip(sh.contours, fl):
+                pts = flatten_closed(torch.from_numpy(np.asarray(c, dtype=np.float64)), 8).numpy().reshape(-1, 8, 2)
+                ix = np.clip(pts[..., 0].astype(int), 0, w - 1)
+                iy = np.clip(pts[..., 1].astype(int), 0, h - 1)
+                bad = np.nonzero(err[iy, ix].mean(1) > limit)[0]
+                if len(bad) and len(c) // 3 + len(bad) <= self.s.max_segments:
+                    c, f = split_segments(c, f, bad)
+                    count += len(bad)
+                cs.append(c)
+                fs.append(f)
+            shapes.append(VectorShape(cs, sh.color, sh.fill_rule))
+            out_flags.append(fs)
+        return VectorImage(vec.width, vec.height, shapes), out_flags, count
+
+    def loss(self, vecs: list[VectorImage], index: list[int]) -> list[float]:
+        """The judge: pyramid L2 at ``tau_end`` with ``polish_samples`` lines per cubic."""
+        return self.fine.vector_loss(vecs, self.s.tau_end, index)
