@@ -5,7 +5,7 @@ exit code, ``Error:`` lines, whether a traceback appeared, seconds, and for `ren
 
     python bench/safety.py [--out docs/safety-run.md]
 
-It prints figures; it passes or fails nothing (the tests in tests/test_safety.py do).
+It prints figures; it passes or fails nothing (the tests in tests/cli/test_safety.py do).
 """
 
 from __future__ import annotations

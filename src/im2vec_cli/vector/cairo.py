@@ -3,7 +3,7 @@ viewer shows.
 
 ``rasterize_svg`` draws any SVG through cairosvg. ``fill_vector`` draws one of our own
 ``VectorImage`` (closed cubic paths, flat fills) straight through libcairo, with the calls
-cairosvg makes for it, so the pixels are the same (tests/test_startup.py) without cairocffi,
+cairosvg makes for it, so the pixels are the same (tests/cli/test_startup.py) without cairocffi,
 whose import parses cairo's C headers at every start (0.3-0.5 s, a fifth of a one-picture
 `vectorize`). Where libcairo cannot be loaded that way, it goes through cairosvg.
 """

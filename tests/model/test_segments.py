@@ -19,7 +19,7 @@ from im2vec_cli.train_aux import AuxSettings, train_segment_predictor
 from im2vec_cli.vector import VectorImage, VectorShape, simplify, simplify_contour, to_svg
 from tests.helpers import TINY, check_svg, circle, make_tiny_model, png, run, synthetic_shapes
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_predicted_curves_are_monotone_and_fit_exact_curves():

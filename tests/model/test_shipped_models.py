@@ -12,7 +12,7 @@ from im2vec_cli.model.pretrained import REPO_MODELS, from_pretrained
 MODELS = sorted(str(p.parent.relative_to(REPO_MODELS)) for p in REPO_MODELS.glob("**/config.json")
                 if json.loads(p.read_text()).get("class_name") == "ModelConfig")  # not the feature nets (features/)
 FEATURE_NETS = sorted(str(p.parent.relative_to(REPO_MODELS)) for p in REPO_MODELS.glob("features/*/config.json"))
-ASSETS = Path(__file__).parent / "assets" / "fonts_test"
+ASSETS = Path(__file__).parents[1] / "assets" / "fonts_test"
 
 
 @pytest.mark.parametrize("name", MODELS)

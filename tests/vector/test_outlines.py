@@ -235,6 +235,7 @@ def test_touching_colours_show_no_background_between_them():
     assert edge.min(-1).max() < 0.35, edge.min(-1).max()  # the lightest channel stays dark: no white seam
 
 
+@pytest.mark.slow  # 16 full vectorize runs
 @needs_fonts
 def test_larger_tolerance_gives_fewer_segments_on_glyphs():
     """``--tolerance``: on four glyph-like shapes, segments never grow with the tolerance."""

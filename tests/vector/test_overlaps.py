@@ -6,8 +6,7 @@ import torch
 
 from im2vec_cli.raster.bezier import flatten_closed, polygon_area
 from im2vec_cli.vector import VectorImage, VectorShape, rasterize_svg, resolve_overlaps, reverse_contour, to_svg
-
-from .helpers import circle, polyline_as_cubic
+from tests.helpers import circle, polyline_as_cubic
 
 W, H = 48, 40
 

@@ -15,7 +15,7 @@ from im2vec_cli.refine import EFFORTS, RefineSettings, refine
 from im2vec_cli.vector import rasterize_svg, to_svg
 from tests.helpers import check_svg, make_tiny_model
 
-ASSETS = Path(__file__).parent / "assets" / "fonts_test"
+ASSETS = Path(__file__).parents[1] / "assets" / "fonts_test"
 QUICK = RefineSettings(latent_steps=10, point_steps=30)
 
 

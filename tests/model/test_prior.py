@@ -21,10 +21,9 @@ from im2vec_cli.model.prior import PRIOR_WEIGHTS, LatentPrior, fit_prior
 from im2vec_cli.train_features import JUNK, junk_images
 from im2vec_cli.vector import from_svg, rasterize_svg
 from im2vec_cli.vector.image import VectorImage, VectorShape
+from tests.helpers import make_tiny_model, run, synthetic_shapes
 
-from .helpers import make_tiny_model, run, synthetic_shapes
-
-ASSETS = Path(__file__).parent / "assets"
+ASSETS = Path(__file__).parents[1] / "assets"
 
 
 @pytest.fixture(scope="module")
@@ -235,8 +234,7 @@ def test_feature_net_round_trip_and_checks(tmp_path):
 def test_train_writes_and_export_copies_the_prior(tmp_path):
     from im2vec_cli.model.pretrained import export_checkpoint, from_pretrained
     from im2vec_cli.train import train
-
-    from .test_train import MODEL, fast_cfg
+    from tests.test_train import MODEL, fast_cfg
 
     out = train(None, tmp_path / "run", MODEL, fast_cfg(steps=4), images=synthetic_shapes(64, 32))
     m = from_pretrained(out)

@@ -19,7 +19,7 @@ from im2vec_cli.refine.core import _box3
 from im2vec_cli.vector import VectorImage, VectorShape, cairo, fill_vector, rasterize_svg, to_svg
 from tests.helpers import TINY, circle, make_tiny_model, png, polyline_as_cubic, run
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
