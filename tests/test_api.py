@@ -159,3 +159,15 @@ def test_the_api_trains_fine_tunes_fits_a_prior_and_exports(tmp_path):
         iv.fit_prior(data, iv.load_model(base, "cpu"), base, components=1)
     folder, step = iv.export(tmp_path / "run", tmp_path / "exported")
     assert step == 2 and (folder / "model.safetensors").is_file()
+
+
+def test_the_module_example_runs(monkeypatch):
+    """The API's own example (its module docstring) is a doctest: it runs and prints what it says."""
+    import doctest
+    from pathlib import Path
+
+    from im2vec_cli import api
+
+    monkeypatch.chdir(Path(__file__).resolve().parents[1])  # the example's paths are the repository's
+    result = doctest.testmod(api, verbose=False)
+    assert result.attempted >= 8 and result.failed == 0

@@ -9,8 +9,16 @@ programmers).
     >>> import im2vec_cli as iv
     >>> model = iv.load_model("fonts")
     >>> svg = iv.vectorize("examples/glyph_a.png", model).to_svg()
-    >>> z = iv.encode(["examples/glyph_a.png", "examples/glyph_R.png"], model)   # (2, 128)
-    >>> frames = iv.interpolate(z[0], z[1], model, steps=4)                      # 6 VectorImages
+    >>> svg.startswith("<svg") and 'viewBox="0 0 64 64"' in svg
+    True
+    >>> z = iv.encode(["examples/glyph_a.png", "examples/glyph_R.png"], model)
+    >>> z.shape
+    (2, 128)
+    >>> frames = iv.interpolate(z[0], z[1], model, steps=4)
+    >>> len(frames), type(frames[0]).__name__
+    (6, 'VectorImage')
+
+(run by ``tests/test_api.py::test_the_module_example_runs``, from the repository root.)
 """
 
 from __future__ import annotations
