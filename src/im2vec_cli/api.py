@@ -32,7 +32,7 @@ import torch
 
 from . import infer
 from . import refine as refinement
-from .errors import ModelError
+from .errors import ConfigError, ModelError
 from .files import as_image
 from .model.pretrained import DEFAULT_MODEL, from_pretrained
 from .options import PARTS, VectorizeOptions
@@ -271,7 +271,7 @@ def fit_prior(data_dir, model, output, *, components: int = 10, seed: int = 0, o
     emit = on_event or (lambda e: None)
     source, model, in_place, data = _model_and_images(model, output, overwrite, data_dir, emit)
     if components > max(1, len(data) // 2):
-        raise ValueError(f"components {components}: at most half the {len(data)} images")
+        raise ConfigError(f"components {components}: at most half the {len(data)} images")
     emit({"event": "encode", "images": len(data)})
     prior = fit(posterior_means(model, data), components, seed=seed, data=str(data_dir))
     if in_place:

@@ -110,7 +110,7 @@ def eval_cmd(data_dir, limit, train_dir, samples, pairs, segments, output, markd
     res.update(reconstruction_l2(model, files, segments=k, on_skip=skipped))
     if train_dir:
         train, _ = load_folder(split_dir(train_dir, "train"), model.config.image_size, fit=model.config.fit,
-                               on_skip=lambda msg: warn(f"skipped {msg}"))
+                               on_skip=skipped)
         res["train_images"] = len(train)
         res.update(generation_l2(model, train, samples=samples, seed=seed, segments=k, prior=prior))
         res.update(interpolation_l2(model, train, pairs=pairs, seed=seed, segments=k))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from ..errors import Im2VecError
+from ..errors import ConfigError, Im2VecError
 from ..options import ARCHS, FITS, GROUPINGS
 from .app import EXIT_HELP, cli, warn
 from .options import SEED, Finite, device_option, load_model, model_options, nonempty
@@ -213,7 +213,7 @@ def fit_prior_cmd(data_dir, output, overwrite, components, model_name, device, s
     try:
         prior = api.fit_prior(data_dir, model, output, components=components, seed=seed, overwrite=overwrite,
                               on_event=_say)
-    except ValueError as exc:
+    except ConfigError as exc:  # the one option checked against the data: --components
         raise click.UsageError(f"--{exc}") from None
     click.echo(f"mean log-likelihood {prior.config.log_likelihood:.1f} nats per image; "
                f"prior written to {output}", err=True)

@@ -100,12 +100,18 @@ def _point_winding(pts, a, b):
     py, px = pts[..., 1].unsqueeze(-1), pts[..., 0].unsqueeze(-1)  # (N, M, 1)
     ax, ay = a[..., 0].unsqueeze(1), a[..., 1].unsqueeze(1)  # (N, 1, E)
     bx, by = b[..., 0].unsqueeze(1), b[..., 1].unsqueeze(1)
+    return _crossing(px, py, ax, ay, bx, by).sum(-1)
+
+
+def _crossing(px, py, ax, ay, bx, by) -> torch.Tensor:
+    """+1 where the edge ``a -> b`` crosses the ray from ``(px, py)`` towards +x going up, -1
+    going down, else 0 (broadcast; the one test of both point windings, so they agree exactly)."""
     up = (ay <= py) & (by > py)
     down = (by <= py) & (ay > py)
     dy = by - ay
     xi = ax + (py - ay) * (bx - ax) / torch.where(dy == 0, torch.ones_like(dy), dy)
     right = xi > px
-    return ((up & right).to(a.dtype) - (down & right).to(a.dtype)).sum(-1)
+    return (up & right).to(ax.dtype) - (down & right).to(ax.dtype)
 
 
 def boundary_edges(verts: torch.Tensor, shape_index: torch.Tensor | None) -> torch.Tensor:
@@ -206,12 +212,7 @@ def point_winding_banded(pts: torch.Tensor, a: torch.Tensor, b: torch.Tensor) ->
         c = cnt[q0:q1]
         q = torch.repeat_interleave(torch.arange(q0, q1, device=dev), c)  # (K,) the point of each pair
         j = edge[start[q] + torch.arange(q.numel(), device=dev) - (torch.cumsum(c, 0) - c)[q - q0]]  # its edge
-        up = (ay[j] <= py[q]) & (by[j] > py[q])
-        down = (by[j] <= py[q]) & (ay[j] > py[q])
-        dy = by[j] - ay[j]
-        xi = ax[j] + (py[q] - ay[j]) * (bx[j] - ax[j]) / torch.where(dy == 0, torch.ones_like(dy), dy)
-        right = xi > px[q]
-        out.index_add_(0, q, (up & right).to(a.dtype) - (down & right).to(a.dtype))
+        out.index_add_(0, q, _crossing(px[q], py[q], ax[j], ay[j], bx[j], by[j]))
         q0 = q1
     return out.view(n, m)
 

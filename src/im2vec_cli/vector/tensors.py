@@ -22,7 +22,7 @@ RENDER_PIECE_PX = 32.0  # longest cubic piece (control polygon, output px) the r
 MAX_RENDER_EDGES = 4_000_000  # flattened edges of one render (about a second each 100,000 on 2 cores)
 RENDER_CHUNK = 4_000_000  # coverage pixels (shapes x H x W), and padded segments and edges, drawn at once
 SNAP = 1e-3  # coverage this near 0 or 1 is drawn as 0 or 1 (the radius clamp leaves 3e-4)
-RENDER_SAMPLES = 16  # render_vector's default lines per cubic piece (the chunks' edge budget assumes it)
+RENDER_SAMPLES = 16  # render_vector's default lines per cubic piece
 
 
 def from_tensors(
@@ -108,7 +108,7 @@ def render_vector(image: VectorImage, *, scale: float = 1.0, tau: float = 0.15, 
     contours, sidx = _pieces(image, (w / max(image.width, 1e-9), h / max(image.height, 1e-9)), samples)
     margin = 8 * tau + 1  # coverage beyond it is within 3e-4 of 0 (render_coverage's radius)
     with torch.no_grad(), compiling(False):  # one picture: a compile costs more than it saves
-        for first, last, (x0, y0, x1, y1) in _chunks(image, contours, sidx, (h, w), margin):
+        for first, last, (x0, y0, x1, y1) in _chunks(image, contours, sidx, (h, w), margin, samples):
             sel = range(bisect.bisect_left(sidx, first), bisect.bisect_left(sidx, last))  # sidx is sorted
             smax = max(len(contours[i]) // 3 for i in sel)
             pts = torch.stack([torch.cat([contours[i], contours[i][:1].expand(3 * smax - len(contours[i]), 2)])
@@ -157,7 +157,7 @@ def _pieces(image: VectorImage, scale: tuple[float, float], samples: int) -> tup
 
 
 def _chunks(image: VectorImage, contours: list[torch.Tensor], sidx: list[int], size: tuple[int, int],
-            margin: float) -> list[tuple[int, int, tuple[int, int, int, int]]]:
+            margin: float, samples: int) -> list[tuple[int, int, tuple[int, int, int, int]]]:
     """Runs ``[first, last)`` of consecutive drawn shapes of one fill rule with the pixel box
     ``(x0, y0, x1, y1)`` they cover (grown by ``margin``), each run within ``RENDER_CHUNK``
     coverage pixels (shapes x box) and padded segments; a shape too big alone is a run of its own."""
@@ -176,14 +176,17 @@ def _chunks(image: VectorImage, contours: list[torch.Tensor], sidx: list[int], s
 
     runs, cur = [], None  # cur: [first, last, union box, paths, longest path, largest shape]
     for g, b in enumerate(box):
-        if b is None or pixels(b)[2] <= pixels(b)[0] or pixels(b)[3] <= pixels(b)[1]:
-            continue  # no contour, or wholly off the canvas: draws nothing
+        if b is None:
+            continue  # no contour: draws nothing
+        x0, y0, x1, y1 = pixels(b)
+        if x1 <= x0 or y1 <= y0:
+            continue  # wholly off the canvas: draws nothing
         if cur is not None:
             u = (min(cur[2][0], b[0]), min(cur[2][1], b[1]), max(cur[2][2], b[2]), max(cur[2][3], b[3]))
             x0, y0, x1, y1 = pixels(u)
             shapes = g + 1 - cur[0]  # the renderer pads paths to the longest, and shapes to the largest
             fits = shapes * (x1 - x0) * (y1 - y0) <= RENDER_CHUNK and (cur[3] + b[4]) * max(cur[4], b[5]) \
-                <= RENDER_CHUNK and shapes * max(cur[5], b[6]) * RENDER_SAMPLES <= RENDER_CHUNK
+                <= RENDER_CHUNK and shapes * max(cur[5], b[6]) * samples <= RENDER_CHUNK
             if fits and image.shapes[g].fill_rule == image.shapes[cur[0]].fill_rule:
                 cur = [cur[0], g + 1, u, cur[3] + b[4], max(cur[4], b[5]), max(cur[5], b[6])]
                 continue
