@@ -38,7 +38,8 @@ from .model.pretrained import DEFAULT_MODEL, from_pretrained
 from .options import PARTS, VectorizeOptions
 from .raster import compiling
 from .runtime import resolve_device
-from .vector import VectorImage, simplify
+from .trace import simplify
+from .vector import VectorImage
 
 __all__ = ["VectorizeOptions", "decode", "encode", "export", "fit_prior", "interpolate", "load_feature_net",
            "load_model", "prior_latents", "sample", "train", "train_aux", "train_features", "vectorize"]

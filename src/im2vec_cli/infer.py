@@ -14,8 +14,8 @@ from .frame import Placement, resize_square, to_model_frame
 from .model.vae import Decoded, Im2Vec
 from .options import PRIORS
 from .raster import line_controls
+from .trace import cleaned
 from .vector import VectorImage, VectorShape, from_tensors, resolve_overlaps
-from .vector.outline import cleaned
 
 MIN_AREA = 1e-4  # paths below this area (normalised units) are unused and not exported
 

@@ -13,11 +13,8 @@ import pytest
 import torch
 
 from im2vec_cli import runtime
-from im2vec_cli.model.vae import Im2Vec
-from im2vec_cli.refine import Refinement, RefineSettings
-from im2vec_cli.refine.core import _box3
 from im2vec_cli.vector import VectorImage, VectorShape, cairo, fill_vector, rasterize_svg, to_svg
-from tests.helpers import TINY, circle, make_tiny_model, png, polyline_as_cubic, run
+from tests.helpers import circle, make_tiny_model, png, polyline_as_cubic, run
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -126,34 +123,6 @@ def test_fill_vector_draws_what_cairosvg_draws(fallback, monkeypatch):
         assert ours.shape == ref.shape == (40, 48, 3)
         assert np.array_equal(ours, ref)
     assert fill_vector(_pictures()[1], 48, 40).min() < 0.01  # the pictures are not blank
-
-
-def test_split_where_wrong_splits_only_where_the_render_is_wrong():
-    """A circle traced with 8 segments, the input a circle with a bump on its right: only the
-    two segments that meet at the bump are halved."""
-    h = w = 48
-    bumped = _ring(24, 24, 14)
-    bumped[0:2, 0] += 6  # the first anchor (at 0 degrees, the right) and its handle pushed out
-    bumped[-1, 0] += 6
-    truth = VectorImage(w, h, [VectorShape([bumped], (0.0, 0.0, 0.0), "nonzero")])
-    target = torch.from_numpy(rasterize_svg(to_svg(truth, 4), w, h)).permute(2, 0, 1).float()
-    plain = VectorImage(w, h, [VectorShape([_ring(24, 24, 14)], (0.0, 0.0, 0.0), "nonzero")])
-    flags = [[np.zeros(8, dtype=bool)]]
-    run_ = Refinement(Im2Vec(TINY), [target], RefineSettings())  # no model stage is used
-    vec, new_flags, count = run_.split_where_wrong(plain, flags, 0)
-    assert count == 2
-    assert len(vec.shapes[0].contours[0]) == 3 * (8 + count) and len(new_flags[0][0]) == 8 + count
-    old = {tuple(a) for a in np.round(plain.shapes[0].contours[0][0::3], 6)}
-    new = [a for a in np.round(vec.shapes[0].contours[0][0::3], 6) if tuple(a) not in old]
-    assert len(new) == 2 and all(a[0] > 34 for a in new)  # the new anchors halve those two, on the right
-    assert run_.split_where_wrong(truth, flags, 0)[2] == 0  # nothing is wrong with the truth
-
-
-def test_box3_is_scipys_uniform_filter():
-    from scipy.ndimage import uniform_filter
-
-    a = np.random.default_rng(0).random((37, 53)) ** 3
-    assert np.abs(_box3(a) - uniform_filter(a, 3)).max() < 1e-12
 
 
 # --- what a default vectorize imports --------------------------------------------------------------

@@ -7,17 +7,14 @@ import numpy as np
 import pytest
 import torch
 
-from im2vec_cli.evaluate import outline_iou, svg_mask
 from im2vec_cli.files import load_image
 from im2vec_cli.frame import Placement
 from im2vec_cli.infer import model_input, to_vector, vectorize
 from im2vec_cli.model.pretrained import REPO_MODELS, from_pretrained
 from im2vec_cli.model.segments import K_MIN, SegmentPredictor, choose_segments, curve, fit_loss
 from im2vec_cli.raster import render_paths
-from im2vec_cli.raster.bezier import line_controls
 from im2vec_cli.train_aux import AuxSettings, train_segment_predictor
-from im2vec_cli.vector import VectorImage, VectorShape, simplify, simplify_contour, to_svg
-from tests.helpers import TINY, check_svg, circle, make_tiny_model, png, run, synthetic_shapes
+from tests.helpers import TINY, check_svg, make_tiny_model, png, run, synthetic_shapes
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -144,57 +141,4 @@ def test_auto_segments_fewer_for_simple_shapes():
 
 # --- merging --------------------------------------------------------------------------------
 
-def _as_image(contours, w=64, h=64):
-    return VectorImage(float(w), float(h), [VectorShape([np.asarray(c) for c in contours], (0, 0, 0), "evenodd")])
 
-
-def test_simplify_merges_a_finely_split_circle():
-    """16 segments on a circle of radius 20 px -> at most 5, outline within 0.5% IoU (cairosvg at 4x)."""
-    c = circle(32, 32, 20, segments=16).numpy()
-    before = _as_image([c])
-    after = simplify(before, 0.05)
-    n = after.num_segments
-    assert 4 <= n <= 5
-    iou = outline_iou(svg_mask(to_svg(before, 4), 256), svg_mask(to_svg(after, 4), 256))
-    assert iou > 0.995
-
-
-def test_simplify_joins_collinear_lines_and_keeps_corners():
-    """A square drawn with 3 straight segments per side becomes 4 segments, same corners."""
-    corners = np.array([[0, 0], [30, 0], [30, 30], [0, 30]], float) + 10
-    pts = []
-    for i in range(4):
-        a, b = corners[i], corners[(i + 1) % 4]
-        for j in range(3):
-            p, q = a + (b - a) * j / 3, a + (b - a) * (j + 1) / 3
-            pts += [p, *line_controls(p, q)]
-    out = simplify_contour(np.array(pts), 0.05)
-    assert len(out) == 12
-    anchors = {tuple(np.round(p, 6)) for p in out[0::3]}
-    assert anchors == {tuple(c) for c in corners}
-
-
-def _dense(contour, n=200):
-    seg = contour[(np.arange(len(contour) // 3)[:, None] * 3 + np.arange(4)) % len(contour)]  # (S, 4, 2)
-    t = np.linspace(0, 1, n)[None, :, None]
-    u = 1 - t
-    return (u**3 * seg[:, None, 0] + 3 * u * u * t * seg[:, None, 1] + 3 * u * t * t * seg[:, None, 2]
-            + t**3 * seg[:, None, 3]).reshape(-1, 2)
-
-
-def test_simplify_stays_within_tolerance_of_the_original():
-    """Random smooth-ish contours: every point of the original lies within ~tol of the result
-    (checked on dense samples, independent of the merge's own error measure)."""
-    rng = np.random.default_rng(0)
-    tol = 0.3
-    for _ in range(20):
-        n = int(rng.integers(3, 12))
-        ang = np.sort(rng.uniform(0, 2 * np.pi, 3 * n))
-        r = rng.uniform(8, 25, 3 * n)
-        c = np.stack([32 + r * np.cos(ang), 32 + r * np.sin(ang)], 1)
-        out = simplify_contour(c, tol)
-        assert 2 <= len(out) // 3 <= n and len(out) % 3 == 0
-        a, b = _dense(c), _dense(out)
-        dist = np.sqrt(((a[:, None] - b[None]) ** 2).sum(-1)).min(1)
-        assert dist.max() < tol * 1.5, dist.max()  # samples between the measured ones may stray a little
-    assert simplify(_as_image([c]), 0.0).num_segments == n  # tolerance 0: unchanged

@@ -4,7 +4,7 @@ The amortised encoder gives a first guess; refinement then minimises the pyramid
 (sec. 3.4, eq. 1) against the input itself, first over the latent ``z`` (the shapes stay
 on the model's manifold), then over the control points and colours directly. Paths whose
 removal barely changes the loss are then dropped, neighbouring segments are merged while the
-outline moves less than ``simplify_tol`` pixels (``vector/simplify.py``), and a short points-only
+outline moves less than ``simplify_tol`` pixels (``trace/simplify.py``), and a short points-only
 polish follows. The default uses one pyramid level: see ``RefineSettings.levels``. The stages
 are the methods of ``Refinement``; overlapping even-odd paths are resolved once, on the
 latent stage's result (``vector.resolve_overlaps``), and the later stages fit under the rule it chose.
@@ -17,8 +17,8 @@ the input's resolution (inputs larger than ``max_side`` are fitted at a reduced 
 
 from ..options import PARTS
 from .batch import REFINE_BATCH, refine, refine_batch
-from .settings import CHOICE_TOLERANCE, EFFORTS, RefineSettings
+from .settings import EFFORTS, RefineSettings
 from .stages import Refinement
 
-__all__ = ["CHOICE_TOLERANCE", "EFFORTS", "PARTS", "REFINE_BATCH", "RefineSettings", "Refinement", "refine",
+__all__ = ["EFFORTS", "PARTS", "REFINE_BATCH", "RefineSettings", "Refinement", "refine",
            "refine_batch"]

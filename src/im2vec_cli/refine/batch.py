@@ -1,8 +1,9 @@
-"""The batch driver of refinement: ``refine`` and ``refine_batch``, the model-path run and
-the clean-outline run."""
+"""The batch driver of refinement: ``refine`` and ``refine_batch``, the model-path run, and the
+clean-outline run (``trace.clean_outlines``, polished by a ``Refinement``)."""
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 
 import torch
@@ -10,10 +11,9 @@ import torch
 from ..infer import flat_result
 from ..model.vae import Im2Vec
 from ..options import PARTS
-from ..vector import VectorImage, VectorShape, simplify
-from ..vector.outline import Corners, redrawn, traced, untangle
-from ..vector.trace import background_color, two_tone
-from .settings import CHOICE_TOLERANCE, RefineSettings
+from ..trace import clean_outlines, simplify
+from ..vector import VectorImage
+from .settings import RefineSettings
 from .stages import Refinement
 
 REFINE_BATCH = 32  # images refined together (one render per step); bounds the memory of a batch
@@ -38,9 +38,11 @@ def refine(
     polish. ``parts="clean"`` (the default) writes clean outlines instead: two starts, each
     polished through the renderer, the one nearer the image kept:
 
-    - the model's refined paths, each shape redrawn as clean rings (``vector.outline.redrawn``),
+    - the model's refined paths, each shape redrawn as clean rings (``trace.redrawn``),
       with the pieces and holes of a two-tone image that the model missed added or cut out;
-    - the image's own regions traced (``vector.outline.traced``; ``colors`` sets the palette).
+    - the image's own regions traced (``trace.traced``; ``colors`` sets the palette).
+
+    (The stage list of clean outlines is ``trace.clean_outlines``; ``Refinement`` is its polisher.)
 
     Both are shapes of non-overlapping outer contours and holes, fitted with cubics within
     ``settings.tolerance`` input pixels, corners kept sharp. ``segments`` / ``quality`` as in
@@ -97,11 +99,13 @@ def refine_batch(
                 for start in range(0, len(group), batch):
                     ids = group[start : start + batch]
                     run = Refinement(model, [images[i] for i in ids], settings, on_step)
-                    idx = list(range(len(ids)))
                     if parts == "model":
-                        got = _model_paths(run, idx, segments, quality, max_paths)
+                        got = _model_paths(run, list(range(len(ids))), segments, quality, max_paths)
                     else:
-                        got = _clean(run, segments, quality, colors, max_paths)
+                        from_model = functools.partial(_model_paths, run, segments=segments, quality=quality,
+                                                       max_paths=max_paths, outline=True)
+                        got = clean_outlines(run.images, run, settings.outline_settings(), colors=colors,
+                                             max_paths=max_paths, model_paths=from_model)
                     for i, r in zip(ids, got):
                         out[i] = r
     finally:
@@ -136,68 +140,3 @@ def _model_paths(run: Refinement, index: list[int], segments, quality, max_paths
         out.append((v, {**info[j], "loss_end": e, "polish_steps": polish_steps[j], "segments_fitted": fitted[j],
                         "segments": v.num_segments}))
     return out
-
-
-def _clean(run: Refinement, segments, quality, colors: int | None, max_paths: int | None
-           ) -> list[tuple[VectorImage, dict]]:
-    """Clean outlines from each image's regions and, for a two-tone image, from the model's
-    refined paths; the start nearer the image is polished (and split where still wrong)."""
-    n = len(run.images)
-    pictures = [im.permute(1, 2, 0).double().cpu().numpy() for im in run.images]  # (H, W, 3)
-    # The contours of a clean shape do not overlap, so even-odd renders them as nonzero does,
-    # without the renderer's boundary search (seconds on a picture of many regions); written nonzero.
-    starts: list[dict] = [{"image": lambda tol, pic=pic: _evenodd(*traced(pic, tol, colors, max_paths))}
-                          for pic in pictures]
-    info: list[dict] = [{} for _ in range(n)]
-    if run.s.model_start and colors in (None, 1):
-        # Multi-colour pictures: the shipped emoji model's paths lost to the image's own regions on
-        # every OpenMoji face tried (bench/outlines.py) and cost seconds, so only the image is traced.
-        two = [i for i, pic in enumerate(pictures) if two_tone(pic, background_color(pic)) is not None]
-        if two:
-            for i, (mv, inf) in zip(two, _model_paths(run, two, segments, quality, max_paths, outline=True)):
-                info[i] = inf
-                if mv.shapes:
-                    starts[i]["model"] = lambda tol, mv=mv, pic=pictures[i]: _evenodd(*redrawn(mv, tol, pic))
-    names = ["image"] * n
-    both = [i for i in range(n) if len(starts[i]) > 1]
-    if both:  # chosen at one tolerance for all, so that a looser one never changes the choice
-        cands = [(i, name, make(CHOICE_TOLERANCE)[0]) for i in both for name, make in starts[i].items()]
-        scores = run.loss([v for _, _, v in cands], [i for i, _, _ in cands])
-        for i in both:  # the polish moves points by a fraction of a pixel: it does not reorder the starts
-            names[i] = min((sc, name) for (j, name, _), sc in zip(cands, scores) if j == i)[1]
-    made = [starts[i][names[i]](run.s.tolerance) for i in range(n)]
-    vecs, flags = [v for v, _ in made], [f for _, f in made]
-    todo = [i for i in range(n) if vecs[i].shapes]  # an empty one has nothing to draw
-    got = run.polish_outline([vecs[i] for i in todo], [flags[i] for i in todo], todo)
-    loss = dict(zip(todo, run.loss(got, todo)))
-    for i, v in zip(todo, got):
-        vecs[i] = v
-    if run.s.split_error > 0:
-        more = {}
-        for i in todo:
-            v, f, count = run.split_where_wrong(vecs[i], flags[i], i)
-            if count:
-                more[i] = (v, f)
-        again = list(more)
-        if again:
-            got = run.polish_outline([more[i][0] for i in again], [more[i][1] for i in again], again)
-            for i, v, sc in zip(again, got, run.loss(got, again)):
-                if sc < loss[i]:
-                    vecs[i], loss[i] = v, sc
-    out = []
-    for i in range(n):
-        if i not in loss:
-            out.append((vecs[i], {**info[i], "loss_end": run.loss([vecs[i]], [i])[0], "start": names[i],
-                                  "segments": 0}))
-            continue
-        v = untangle(_with_rule(vecs[i], "nonzero"))
-        out.append((v, {**info[i], "loss_end": loss[i], "start": names[i], "segments": v.num_segments}))
-    return out
-
-
-def _with_rule(vec: VectorImage, rule: str) -> VectorImage:
-    return VectorImage(vec.width, vec.height, [VectorShape(sh.contours, sh.color, rule) for sh in vec.shapes])
-
-
-def _evenodd(vec: VectorImage, flags: Corners) -> tuple[VectorImage, Corners]:
-    return _with_rule(vec, "evenodd"), flags

@@ -12,8 +12,8 @@ import torch.nn.functional as F
 
 from ..optim import Adam
 from ..raster import gaussian_pyramid, polygon_area, pyramid_l2, render_pyramid, segment_controls
+from ..trace import Corners
 from ..vector import VectorImage, VectorShape
-from ..vector.outline import Corners
 from .settings import RefineSettings
 
 
@@ -30,14 +30,6 @@ def _geometry_penalty(points: torch.Tensor, real: torch.Tensor, size: tuple[int,
     chord = (seg[..., 3, :] - seg[..., 0, :]).norm(dim=-1)  # (B, P, K) px
     collapse = (F.relu(s.min_segment_px - chord).square() * real[..., 0::3]).flatten(1).sum(1)
     return s.bounds_weight * bounds + s.collapse_weight * collapse
-
-
-def _box3(a: np.ndarray) -> np.ndarray:
-    """The mean of each pixel's 3 x 3 neighbourhood, edges mirrored (``scipy.ndimage.uniform_filter(a, 3)``,
-    without importing SciPy's 0.3 s of modules for it)."""
-    p = np.pad(a, 1, mode="symmetric")
-    rows = (p[:-2] + p[1:-1] + p[2:]) / 3
-    return (rows[:, :-2] + rows[:, 1:-1] + rows[:, 2:]) / 3
 
 
 def _converged(history: list[float], s: RefineSettings) -> bool:
@@ -159,13 +151,21 @@ class _Fitter:
         self.target = gaussian_pyramid(target, s.levels)  # levels of (B, 3, h, w)
         self.samples, self.s = samples, s
 
-    def loss(self, t: _Paths, points, colors, rows: torch.Tensor, tau: float) -> torch.Tensor:
-        """Per-image pyramid L2 ``(A,)`` of the paths ``t`` (drawn with ``points``, ``colors``)
-        against the targets ``rows (A,)``."""
-        renders = render_pyramid(points, colors, t.depth, size=self.size, levels=self.s.levels, tau=tau,
-                                 fill_rule=t.fill_rule, shape_index=t.shape_index, counts=t.counts,
+    def loss(self, points: torch.Tensor, colors: torch.Tensor, depth: torch.Tensor, rows: torch.Tensor, tau: float, *,
+             fill_rule: str, shape_index: torch.Tensor | None, counts: torch.Tensor | None) -> torch.Tensor:
+        """The one render + loss of refinement (the latent stage and the point stages call it):
+        per-image pyramid L2 ``(A,)`` of the paths ``points (A, P, 3K, 2)`` (input-normalised),
+        ``colors (A, G, 3)``, ``depth (A, G)`` against the targets ``rows (A,)``."""
+        renders = render_pyramid(points, colors, depth, size=self.size, levels=self.s.levels, tau=tau,
+                                 fill_rule=fill_rule, shape_index=shape_index, counts=counts,
                                  samples=self.samples, composite="over")
         return pyramid_l2(renders, [lvl[rows] for lvl in self.target], reduction="none")
+
+    def paths_loss(self, t: _Paths, points: torch.Tensor, colors: torch.Tensor, rows: torch.Tensor, tau: float
+                   ) -> torch.Tensor:
+        """``loss`` of the paths ``t`` drawn with ``points`` and ``colors``."""
+        return self.loss(points, colors, t.depth, rows, tau, fill_rule=t.fill_rule, shape_index=t.shape_index,
+                         counts=t.counts)
 
     def vector_loss(self, vecs: list[VectorImage], tau: float, index: list[int] | None = None) -> list[float]:
         """The loss of each image (``inf`` for an empty one), one batched render per fill rule."""
@@ -175,7 +175,7 @@ class _Fitter:
             t = _Paths.of([vecs[i] for i in todo], self.target[0].device)
             rows = torch.tensor([index[i] for i in todo], device=t.points.device)
             with torch.no_grad():
-                got = self.loss(t, t.points, t.colors, rows, tau).tolist()
+                got = self.paths_loss(t, t.points, t.colors, rows, tau).tolist()
             for i, v in zip(todo, got):
                 out[i] = v
         return out
@@ -188,7 +188,7 @@ class _Fitter:
         One batched render per step (per fill rule), one loss per image: an image's gradient
         and Adam state are its own, so the batch gives each image what it alone would get
         (up to float rounding). Each image stops when its loss converges and is rendered no
-        more. ``smooth``: per image the corner flags of ``vector.fit.fit_ring``; after every
+        more. ``smooth``: per image the corner flags of ``trace.fit_rings``; after every
         step the two handles of each smooth join are made collinear again (projected gradient
         descent). Returns the best result of each image at the final tau and its steps taken."""
         index = list(range(len(vecs))) if index is None else index
@@ -223,7 +223,7 @@ class _Fitter:
             tau = tau_start + (s.tau_end - tau_start) * min(1.0, i / anneal) if anneal else s.tau_end
             p, c = (pts, cols) if sel is None else (pts[sel], cols[sel])
             eff = sub.effective(p)
-            fit = self.loss(sub, eff, c.clamp(0, 1), rows_all if sel is None else rows_all[sel], tau)  # (A,)
+            fit = self.paths_loss(sub, eff, c.clamp(0, 1), rows_all if sel is None else rows_all[sel], tau)  # (A,)
             loss = fit + _geometry_penalty(eff, sub.real, self.size, s)
             opt.zero_grad()
             loss.sum().backward()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-CHOICE_TOLERANCE = 0.25  # px: the clean-outline starts are compared fitted this closely
+from ..trace import OutlineSettings
 
 
 @dataclass(frozen=True)
@@ -42,6 +42,10 @@ class RefineSettings:
     model_start: bool = True  # clean outlines of a two-tone image: also start from the model's paths (redrawn
     # clean), keep the better start. On 40 held-out glyphs and 40 icons it changed IoU@4x by -0.0005 and 0.0000
     # at twice the time (bench/outlines.py), so the fast effort traces the image alone
+
+    def outline_settings(self) -> OutlineSettings:
+        """The settings of the clean-outline pipeline (``trace.clean_outlines``)."""
+        return OutlineSettings(self.tolerance, self.split_error, self.max_segments, self.model_start)
 
 
 # Named efforts (`vectorize --effort`; options.EFFORTS names them, torch-free, for the CLI).

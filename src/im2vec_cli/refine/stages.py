@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-import numpy as np
 import torch
 import torch.nn.functional as F
 
@@ -12,11 +11,9 @@ from ..frame import Placement
 from ..infer import model_input, segment_counts, to_vector
 from ..model.vae import Im2Vec
 from ..optim import Adam
-from ..raster import flatten_closed, pyramid_l2, render_pyramid
-from ..vector import VectorImage, VectorShape, fill_vector, resolve_overlaps, simplify
-from ..vector.fit import split_segments
-from ..vector.outline import Corners
-from .core import _box3, _Fitter, _Progress
+from ..trace import Corners, simplify
+from ..vector import VectorImage, resolve_overlaps
+from .core import _Fitter, _Progress
 from .settings import RefineSettings
 
 
@@ -69,10 +66,8 @@ class Refinement:
             kk = k[sel] if isinstance(k, torch.Tensor) else k
             dec = self.model.decode(z[sel], kk)
             sidx = None if dec.shape_index is None else dec.shape_index.expand(len(sel), -1)
-            renders = render_pyramid(place.model_to_input(dec.points), dec.colors, dec.depth, size=self.fitter.size,
-                                     levels=s.levels, tau=s.tau_start, fill_rule=dec.fill_rule, shape_index=sidx,
-                                     counts=dec.counts, samples=self.fitter.samples, composite="over")
-            loss = pyramid_l2(renders, [lvl[rows_all[sel]] for lvl in self.fitter.target], reduction="none")
+            loss = self.fitter.loss(place.model_to_input(dec.points), dec.colors, dec.depth, rows_all[sel], s.tau_start,
+                                    fill_rule=dec.fill_rule, shape_index=sidx, counts=dec.counts)  # (A,)
             opt.zero_grad()
             loss.sum().backward()
             opt.step()
@@ -112,35 +107,6 @@ class Refinement:
         """Clean outlines: points and colours polished for ``outline_steps``, smooth joins kept smooth."""
         return self.fine.fit_points(vecs, self.s.outline_steps, self.s.outline_tau, True, "outline", self.on_step,
                                     smooth=flags, index=index)[0]
-
-    def split_where_wrong(self, vec: VectorImage, flags: Corners, row: int) -> tuple[VectorImage, Corners, int]:
-        """Halve every segment along which the render still differs from the input ``row`` by
-        more than ``split_error`` (mean squared, over the pixels the segment passes and their
-        neighbours, cairo at the input's size; scaled by ``(tolerance / 0.5)^2``): the polish
-        then has the points it lacked there.
-
-        Returns the new image, its corner flags and the segments split."""
-        image = self.images[row]
-        _, h, w = image.shape
-        got = fill_vector(vec, w, h)  # (H, W, 3): cairo, as rasterize_svg(vec.to_svg(3)) draws it
-        err = _box3(((got - image.permute(1, 2, 0).double().cpu().numpy()) ** 2).sum(-1))
-        limit = self.s.split_error * (self.s.tolerance / 0.5) ** 2  # a looser tolerance splits less
-        shapes, out_flags, count = [], [], 0
-        for sh, fl in zip(vec.shapes, flags):
-            cs, fs = [], []
-            for c, f in zip(sh.contours, fl):
-                pts = flatten_closed(torch.from_numpy(np.asarray(c, dtype=np.float64)), 8).numpy().reshape(-1, 8, 2)
-                ix = np.clip(pts[..., 0].astype(int), 0, w - 1)
-                iy = np.clip(pts[..., 1].astype(int), 0, h - 1)
-                bad = np.nonzero(err[iy, ix].mean(1) > limit)[0]
-                if len(bad) and len(c) // 3 + len(bad) <= self.s.max_segments:
-                    c, f = split_segments(c, f, bad)
-                    count += len(bad)
-                cs.append(c)
-                fs.append(f)
-            shapes.append(VectorShape(cs, sh.color, sh.fill_rule))
-            out_flags.append(fs)
-        return VectorImage(vec.width, vec.height, shapes), out_flags, count
 
     def loss(self, vecs: list[VectorImage], index: list[int]) -> list[float]:
         """The judge: pyramid L2 at ``tau_end`` with ``polish_samples`` lines per cubic."""

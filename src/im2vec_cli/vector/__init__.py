@@ -1,17 +1,17 @@
-"""Vector images and everything done to them that is not a tensor op: the ``VectorImage``
-types, the tensor bridge, SVG read/write (static and animated), cairo rasterisation,
-overlap resolution and simplification."""
+"""Vector images: the ``VectorImage`` types, the tensor bridge (and our rasterizer on a
+``VectorImage``), SVG read/write (static and animated), cairo rasterisation, the Skia
+path-ops bridge and overlap resolution. Tracing, curve fitting and outline clean-up live in
+``trace/``."""
 
 from .cairo import contact_sheet, fill_vector, rasterize_svg
 from .image import VectorImage, VectorShape
 from .overlaps import resolve_overlaps, reverse_contour
 from .read import from_svg, parse_d
-from .simplify import simplify, simplify_contour
 from .svg import animated_svg, contour_d, to_svg
 from .tensors import from_tensors, render_vector, to_tensors
 
 __all__ = [
     "VectorImage", "VectorShape", "animated_svg", "contact_sheet", "contour_d", "fill_vector", "from_svg",
-    "from_tensors", "parse_d", "rasterize_svg", "render_vector", "resolve_overlaps", "reverse_contour", "simplify",
-    "simplify_contour", "to_svg", "to_tensors",
+    "from_tensors", "parse_d", "rasterize_svg", "render_vector", "resolve_overlaps", "reverse_contour", "to_svg",
+    "to_tensors",
 ]

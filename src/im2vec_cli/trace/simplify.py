@@ -17,8 +17,8 @@ import numpy as np
 import torch
 
 from ..raster.bezier import cubic_at, segment_controls
+from ..vector import VectorImage
 from .fit import fit_cubic
-from .image import VectorImage
 
 SAMPLES = 12  # points per original segment when measuring a merge
 

@@ -1,6 +1,6 @@
 """Closed polygons to closed cubic contours: few segments, sharp corners, within a tolerance.
 
-A ring from ``trace.py`` (or a flattened outline) is resampled at even arc length, its
+A ring from ``regions.py`` (or a flattened outline) is resampled at even arc length, its
 *corners* are found (a turn that happens within a short arc: a serif or a stem end, not the
 round end of a stroke), and each run between corners is fitted with as few cubics as keep
 every sample within ``tol`` pixels (least squares on the two tangent lengths with fixed end
@@ -17,6 +17,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..raster.bezier import cubic_at, line_controls
+
+Corners = list[list[np.ndarray]]  # per shape, per contour: (S,) bool, true where anchor i is sharp
 
 STEP = 0.5  # resampling step along the ring (px)
 NEAR, FAR = 1.5, 3.0  # arc lengths (px) over which a turn is measured

@@ -2,7 +2,7 @@
 
 Two ways in, one way out:
 
-- ``traced``: the picture's own regions (``trace.py``), each ring fitted with few cubics
+- ``traced``: the picture's own regions (``regions.py``), each ring fitted with few cubics
   (``fit.py``).
 - ``redrawn``: any ``VectorImage`` (the model's overlapping parts), each shape rendered under
   its fill rule and traced again, so its parts are united and seams thinner than half a
@@ -11,8 +11,8 @@ Two ways in, one way out:
   is still there. (Uniting the curves exactly with path booleans keeps the model's hairline
   gaps between parts, the cracks this module is here to remove.)
 
-``untangle`` is the last step: a shape whose polished contours cross is replaced by its
-exact outline (Skia path ops). Both give a ``VectorImage`` whose shapes are nonzero, with outer contours clockwise on screen
+``untangle`` (``untangle.py``) is the last step: a shape whose polished contours cross is
+replaced by its exact outline (Skia path ops). Both give a ``VectorImage`` whose shapes are nonzero, with outer contours clockwise on screen
 and holes counter-clockwise, and per contour the corner flags of ``fit.fit_rings`` (which
 joins may stay sharp when the points are polished later). Frame: the pixel frame of the
 picture (``image.py``).
@@ -22,14 +22,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import skia
-from .cairo import fill_vector
-from .fit import fit_rings
-from .image import VectorImage, VectorShape
-from .simplify import simplify_contour
-from .trace import background_color, level_polygons, trace, two_tone
-
-Corners = list[list[np.ndarray]]  # per shape, per contour: (S,) bool, true where anchor i is sharp
+from ..vector import VectorImage, VectorShape, fill_vector
+from .fit import Corners, fit_rings
+from .regions import background_color, level_polygons, trace, two_tone
+from .untangle import untangle
 
 
 def fitted(rings_by_shape: list[tuple[tuple, list[np.ndarray]]], width: float, height: float,
@@ -47,7 +43,7 @@ def fitted(rings_by_shape: list[tuple[tuple, list[np.ndarray]]], width: float, h
 
 def traced(image: np.ndarray, tol: float, colors: int | None = None, max_paths: int | None = None
            ) -> tuple[VectorImage, Corners]:
-    """The picture ``(H, W, 3)`` in [0, 1] traced and fitted (``trace.trace``, ``fit.fit_ring``)."""
+    """The picture ``(H, W, 3)`` in [0, 1] traced and fitted (``regions.trace``, ``fit.fit_rings``)."""
     h, w, _ = image.shape
     regions = trace(image, colors, max_paths)
     return fitted([(r.color, r.polygons) for r in regions], w, h, tol)
@@ -111,63 +107,3 @@ def cleaned(vec: VectorImage, tol: float = 0.5) -> VectorImage:
     clean: each shape ``redrawn`` as the outer contours and holes of what it fills under its
     own rule (so even-odd overlaps become real holes, not checkerboards) and ``untangle``-d."""
     return untangle(redrawn(vec, tol)[0])
-
-
-# --- the last guarantee: no loops ----------------------------------------------------------------
-
-
-def untangle(vec: VectorImage, merge_tol: float = 0.25) -> VectorImage:
-    """Each shape whose contours cross themselves or each other (a polished corner can fold a
-    loop a fraction of a pixel wide) replaced by the exact outline of what it fills under its
-    rule (Skia's path ops: ``skia-pathops``), so no pin hole or sliver is left at any zoom;
-    the segments path ops split are merged again within ``merge_tol`` px where that crosses
-    nothing. Shapes without crossings are kept as they are."""
-    import pathops
-
-    shapes = []
-    for sh in vec.shapes:
-        if not crosses(sh.contours):  # keep our cubics and start points
-            shapes.append(sh)
-            continue
-        path = skia.to_path([skia.contour_chain(c) for c in sh.contours], sh.fill_rule)
-        clean = skia.contours(pathops.simplify(path, fix_winding=True, keep_starting_points=True))
-        merged = [simplify_contour(c, merge_tol) if len(c) >= 9 else c for c in clean]  # path ops split curves
-        shapes.append(VectorShape(clean if crosses(merged) else merged, sh.color, "nonzero"))
-    return VectorImage(vec.width, vec.height, shapes)
-
-
-CROSS_BLOCK = 512  # edges tested at once by ``crosses`` (a few MB of pair arrays)
-
-
-def crosses(contours: list[np.ndarray], samples: int = 16) -> bool:
-    """Whether closed cubic contours ``(3S, 2)`` cross themselves or each other (their
-    polylines at ``samples`` lines per cubic; touching end to end is not crossing)."""
-    import torch
-
-    from ..raster import flatten_closed
-
-    polys = [flatten_closed(torch.as_tensor(np.asarray(c, dtype=np.float64)), samples).numpy() for c in contours]
-    a = np.concatenate(polys)
-    b = np.concatenate([np.roll(p, -1, 0) for p in polys])
-    owner = np.concatenate([np.full(len(p), i) for i, p in enumerate(polys)])
-    index = np.concatenate([np.arange(len(p)) for p in polys])
-    size = np.concatenate([np.full(len(p), len(p)) for p in polys])
-    d = b - a  # (E, 2)
-
-    def cross(u, v):
-        return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
-
-    for lo in range(0, len(a), CROSS_BLOCK):  # blocks of edges i against all edges j: memory stays bounded
-        i = slice(lo, lo + CROSS_BLOCK)
-        r = a[None] - a[i, None]  # (B, E, 2): from edge i's start to edge j's start
-        den = cross(d[i, None], d[None])
-        ok = np.abs(den) > 1e-12
-        t = np.where(ok, cross(r, d[None]) / np.where(ok, den, 1), -1)  # along edge i
-        u = np.where(ok, cross(r, d[i, None]) / np.where(ok, den, 1), -1)  # along edge j
-        hit = ok & (t > 1e-9) & (t < 1 - 1e-9) & (u > 1e-9) & (u < 1 - 1e-9)
-        same = owner[i, None] == owner[None]
-        gap = np.abs(index[i, None] - index[None])
-        neighbours = same & ((gap <= 1) | (gap >= size[i, None] - 1))
-        if (hit & ~neighbours).any():
-            return True
-    return False

@@ -1,0 +1,29 @@
+"""Clean outlines: a picture's regions traced, rings fitted with few cubics, outlines made
+clean (united, corrected, untangled) and polished through the renderer.
+
+The stage list is ``pipeline.clean_outlines``; its parts, bottom up:
+
+- ``regions``: the picture's flat-colour regions as polygons (two-tone: one sub-pixel level
+  set; multi-colour: a palette, stacked regions);
+- ``fit``: rings to closed cubics within a tolerance, corners kept sharp (``Corners`` flags);
+- ``simplify``: fewer segments for the same outline (neighbours merged within a tolerance);
+- ``outline``: ``traced`` (the picture's regions fitted), ``redrawn`` (any vector image
+  rendered, traced and fitted again: overlaps united, seams closed) and ``cleaned``;
+- ``untangle``: crossings removed with Skia's path ops;
+- ``pipeline``: starts, choice, polish, splits where still wrong, finish.
+
+Frame: the pixel frame of the picture (``vector/image.py``).
+"""
+
+from .fit import Corners, fit_ring, fit_rings, split_segments
+from .outline import cleaned, redrawn, traced
+from .pipeline import CHOICE_TOLERANCE, OutlineSettings, Polisher, clean_outlines, split_where_wrong
+from .regions import Region, background_color, level_polygons, trace, two_tone
+from .simplify import simplify, simplify_contour
+from .untangle import crosses, untangle
+
+__all__ = [
+    "CHOICE_TOLERANCE", "Corners", "OutlineSettings", "Polisher", "Region", "background_color", "clean_outlines",
+    "cleaned", "crosses", "fit_ring", "fit_rings", "level_polygons", "redrawn", "simplify", "simplify_contour",
+    "split_segments", "split_where_wrong", "trace", "traced", "two_tone", "untangle",
+]

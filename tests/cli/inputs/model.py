@@ -1,0 +1,93 @@
+"""Bad model folders and names, for any command that loads a model (builders as in
+``vectorize.py``)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+from tests.helpers import TINY, png
+
+
+def in_unknown_model(d, m):
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--model", "no-such-model"], None
+
+
+def _model_copy(d, m):
+    dst = d / "model"
+    dst.mkdir()
+    for f in Path(m).iterdir():
+        (dst / f.name).write_bytes(f.read_bytes())
+    return dst
+
+
+def in_model_missing_weights(d, m):
+    dst = _model_copy(d, m)
+    (dst / "model.safetensors").unlink()
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--model", str(dst)], None
+
+
+def in_model_truncated_weights(d, m):
+    dst = _model_copy(d, m)
+    w = dst / "model.safetensors"
+    w.write_bytes(w.read_bytes()[: w.stat().st_size // 2])
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--model", str(dst)], None
+
+
+def in_model_nan_weights(d, m):
+    from safetensors.torch import load_file, save_file
+
+    dst = _model_copy(d, m)
+    state = load_file(str(dst / "model.safetensors"))
+    key = sorted(k for k, v in state.items() if v.is_floating_point())[0]
+    state[key] = state[key].clone().fill_(float("nan"))
+    save_file(state, str(dst / "model.safetensors"))
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--model", str(dst)], None
+
+
+def in_model_config_wrong_version(d, m):
+    dst = _model_copy(d, m)
+    cfg = json.loads((dst / "config.json").read_text())
+    cfg["format_version"] = 99
+    (dst / "config.json").write_text(json.dumps(cfg))
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--model", str(dst)], None
+
+
+def in_model_config_not_json(d, m):
+    dst = _model_copy(d, m)
+    (dst / "config.json").write_text("{ not json")
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--model", str(dst)], None
+
+
+def in_model_config_mismatch(d, m):
+    dst = _model_copy(d, m)
+    cfg = json.loads((dst / "config.json").read_text())
+    cfg["latent"] = TINY.latent * 2  # the weights were trained with another latent size
+    (dst / "config.json").write_text(json.dumps(cfg))
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--model", str(dst)], None
+
+
+def in_unknown_device(d, m):
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--device", "tpu:7"], None
+
+
+def in_models_env_missing(d, m):
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--model", "fonts", "--env",
+            str(d / "no-such-folder")], None
+
+
+def in_model_config_null(d, m):
+    bad = d / "model"
+    shutil.copytree(m, bad)
+    (bad / "config.json").write_text("null")
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--model", str(bad)], None
+
+
+def in_model_config_out_of_range(d, m):
+    bad = d / "model"
+    shutil.copytree(m, bad)
+    cfg = json.loads((bad / "config.json").read_text())
+    cfg["paths"] = 0
+    (bad / "config.json").write_text(json.dumps(cfg))
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--model", str(bad)], None

@@ -1,0 +1,181 @@
+"""Batches (issue "Hardening"): a thousand files with bad ones among them, streaming, worker
+processes, Ctrl-C in a real process, byte-identical reruns; and `sample` streaming in chunks."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+
+import pytest
+from click.testing import CliRunner
+from PIL import Image
+
+from im2vec_cli.cli import cli
+from tests.cli.bad_input import EXE, glyph_like
+from tests.helpers import check_svg, png
+
+
+@pytest.mark.slow  # 1,000 files through worker processes
+def test_batch_of_1000_with_5_percent_bad(tmp_path, model_dir, monkeypatch):
+    """Every good file is written (refined, in worker processes: the defaults for a folder this
+    large), every bad one is listed, exit 1; images are streamed."""
+    import im2vec_cli.parallel as parallel
+    import im2vec_cli.runtime as runtime
+
+    jobs, real = [], parallel.vectorize_chunks
+    monkeypatch.setattr(parallel, "vectorize_chunks", lambda *a, **kw: jobs.append(kw) or real(*a, **kw))
+    monkeypatch.setattr(runtime, "free_cores", lambda: os.cpu_count() or 1)  # a quiet machine, whatever runs beside
+    d = tmp_path / "in"
+    d.mkdir()
+    good = glyph_like(32)
+    bad = set(range(0, 1000, 20))  # 50 bad files
+    for i in range(1000):
+        p = d / f"g{i:04d}.png"
+        if i in bad:
+            p.write_bytes(b"\x89PNG broken" if i % 40 else b"")
+        else:
+            good.save(p)
+    res = CliRunner().invoke(cli, ["vectorize", str(d), "-o", str(tmp_path / "out"), "--model", model_dir])
+    assert res.exit_code == 1
+    written = sorted(p.stem for p in (tmp_path / "out").glob("*.svg"))
+    assert written == [f"g{i:04d}" for i in range(1000) if i not in bad]
+    errors = [line for line in res.stderr.splitlines() if line.startswith("Error:")]
+    assert len(errors) == 51 and errors[-1] == "Error: 50 of 1000 inputs failed"
+    assert {line.split(":")[1].strip().rsplit("/", 1)[-1] for line in errors[:-1]} == {
+        f"g{i:04d}.png" for i in bad}
+    expected = min(os.cpu_count() or 1, 8)
+    assert (jobs[0]["jobs"], jobs[0]["options"].refine, jobs[0]["options"].compile) == (expected, True, False) \
+        if expected > 1 else not jobs
+
+
+@pytest.mark.parametrize("refine", [True, False])
+def test_batch_streams_in_chunks(tmp_path, model_dir, monkeypatch, refine):
+    """At most one chunk of images is alive at any time: one refinement batch per chunk by
+    default, one forward pass per chunk with --no-refine."""
+    import im2vec_cli.cli.convert as cli_mod
+    import im2vec_cli.infer as infer
+    import im2vec_cli.refine as refinement
+
+    d = tmp_path / "in"
+    d.mkdir()
+    for i in range(70):
+        glyph_like(32).save(d / f"g{i:03d}.png")
+    sizes = []
+    mod, name = (refinement, "refine_batch") if refine else (infer, "vectorize")
+    real = getattr(mod, name)
+    monkeypatch.setattr(mod, name, lambda model, images, **kw: sizes.append(len(images)) or real(model, images, **kw))
+    res = CliRunner().invoke(cli, ["vectorize", str(d), "-o", str(tmp_path / "out"), "--model", model_dir, "-j", "1"]
+                             + ([] if refine else ["--no-refine"]))
+    assert res.exit_code == 0 and sum(sizes) == 70 and max(sizes) == cli_mod.VECTORIZE_CHUNK
+    assert len(list((tmp_path / "out").glob("*.svg"))) == 70
+
+
+def test_worker_processes_write_what_one_process_writes(tmp_path, model_dir):
+    """`-j 2` (chunks refined in two worker processes) writes byte for byte what `-j 1` writes,
+    on a folder of several image sizes (several refinement groups)."""
+    d = tmp_path / "in"
+    d.mkdir()
+    for i in range(12):
+        glyph_like(30 + i % 4).save(d / f"g{i:02d}.png")
+    outs = []
+    for jobs in ("1", "2"):
+        res = CliRunner().invoke(cli, ["vectorize", str(d), "-o", str(tmp_path / jobs), "--model", model_dir, "-j", jobs])
+        assert res.exit_code == 0, res.output
+        outs.append({p.name: p.read_text() for p in (tmp_path / jobs).glob("*.svg")})
+    assert len(outs[0]) == 12 and outs[0] == outs[1]
+
+
+@pytest.mark.slow  # a real SIGINT into 1,200 files, twice
+@pytest.mark.parametrize("jobs", ["1", "2"])
+def test_ctrl_c_in_a_real_process_leaves_only_complete_svgs(tmp_path, model_dir, jobs):
+    """A real SIGINT (what Ctrl-C sends) while a folder is being refined, once the first chunk
+    is written: exit 130, one line, every SVG on disk complete, no temp file, the rest absent."""
+    import signal
+    import time
+
+    d = tmp_path / "in"
+    d.mkdir()
+    n = 1200  # seconds of work after the first chunk, so that a busy machine cannot finish it before the signal
+    for i in range(n):
+        glyph_like(32 + i % 3).save(d / f"g{i:04d}.png")
+    out = tmp_path / "out"
+    proc = subprocess.Popen(EXE + ["vectorize", str(d), "-o", str(out), "--model", model_dir, "--jobs", jobs],
+                            stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 240
+    while time.time() < deadline and not list(out.glob("*.svg")) and proc.poll() is None:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    written = sorted(out.glob("*.svg"))
+    assert proc.returncode == 130, (err, f"{len(written)} of {n} written")
+    assert "Traceback" not in err and err.strip().splitlines()[-1] == "Interrupted."
+    assert 0 < len(written) < n
+    for p in written:
+        check_svg(p.read_text(), 32 + int(p.stem[1:]) % 3, 32 + int(p.stem[1:]) % 3)
+    assert [p.name for p in out.iterdir() if p.suffix != ".svg"] == []
+
+
+def test_determinism_byte_identical(tmp_path, model_dir):
+    """Same input, model and seed: byte-identical SVGs from separate processes."""
+    src = png(tmp_path / "a.png", 37, 29)
+    outs = []
+    for i in range(2):
+        out = tmp_path / f"o{i}.svg"
+        r = subprocess.run(EXE + ["vectorize", src, "-o", str(out), "--model", model_dir, "--seed", "3"],
+                           capture_output=True)
+        assert r.returncode == 0, r.stderr
+        outs.append(out.read_bytes())
+    assert outs[0] == outs[1]
+    samples = []
+    for i in range(2):
+        r = subprocess.run(EXE + ["sample", "--n", "3", "-o", str(tmp_path / f"s{i}"), "--model", model_dir,
+                                  "--seed", "5"], capture_output=True)
+        assert r.returncode == 0, r.stderr
+        samples.append([p.read_bytes() for p in sorted((tmp_path / f"s{i}").glob("*.svg"))])
+    assert samples[0] == samples[1]
+
+
+@pytest.mark.parametrize("refine", ["--refine", "--no-refine"])
+def test_interrupt_keeps_exactly_the_finished_svgs(tmp_path, model_dir, monkeypatch, refine):
+    """Ctrl-C after 5 images (of 40; chunks of 32 without refinement): every finished SVG is
+    on disk and complete, nothing else is, and the exit code is 130."""
+    import im2vec_cli.api as api
+    import im2vec_cli.cli.convert as convert
+
+    d = tmp_path / "in"
+    d.mkdir()
+    for i in range(40):
+        png(d / f"{i:02d}.png")
+    monkeypatch.setattr(convert, "VECTORIZE_CHUNK", 5)
+    real, done = api.vectorize, []
+
+    def interrupted(images, *a, **kw):
+        if len(done) >= 5:
+            raise KeyboardInterrupt
+        out = real(images, *a, **kw)
+        done.extend(out if isinstance(out, list) else [out])
+        return out
+
+    monkeypatch.setattr(api, "vectorize", interrupted)
+    res = CliRunner().invoke(cli, ["vectorize", str(d), "-o", str(tmp_path / "out"), refine, "--model", model_dir])
+    assert res.exit_code == 130, res.output
+    written = sorted((tmp_path / "out").iterdir())
+    assert [p.name for p in written] == [f"{i:02d}.svg" for i in range(5)]
+    for p in written:
+        check_svg(p.read_text(), 40, 24)
+
+
+def test_sample_streams_and_bounds_the_contact_sheet(tmp_path, model_dir, monkeypatch):
+    import im2vec_cli.cli.generate as generate
+
+    monkeypatch.setattr(generate, "DECODE_CHUNK", 7)
+    monkeypatch.setattr(generate, "CONTACT_MAX", 10)
+    res = CliRunner().invoke(cli, ["sample", "--n", "30", "-o", str(tmp_path / "s"), "--model", model_dir])
+    assert res.exit_code == 0, res.output
+    assert len(list((tmp_path / "s").glob("sample_*.svg"))) == 30
+    with Image.open(tmp_path / "s" / "contact.png") as sheet:
+        assert sheet.size == (8 * 96, 2 * 96)  # the first 10 samples: two rows of 8 cells
+    whole = CliRunner().invoke(cli, ["sample", "--n", "30", "-o", str(tmp_path / "t"), "--model", model_dir])
+    assert whole.exit_code == 0
+    for p in (tmp_path / "s").glob("sample_*.svg"):  # chunking changes nothing
+        assert p.read_bytes() == (tmp_path / "t" / p.name).read_bytes()

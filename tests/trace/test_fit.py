@@ -1,0 +1,54 @@
+"""Rings to cubics (``trace/fit.py``): within the tolerance, corners found, splits keep the outline."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from im2vec_cli.trace.fit import corners, fit_ring, resample, split_segments
+from im2vec_cli.vector import VectorImage, VectorShape, rasterize_svg
+
+
+def test_fit_ring_stays_within_tolerance_and_looser_means_fewer_segments():
+    """Every point of the traced ring (but within a pixel of a corner, which is moved to where
+    its sides meet) lies within ``tol`` of the cubics fitted to it, and a larger tolerance never
+    gives more segments (six rings of glyph-like shapes)."""
+    rng = np.random.default_rng(0)
+    t = np.linspace(0, 2 * np.pi, 400, endpoint=False)
+    rings = [np.stack([32 + (20 + 3 * np.sin(k * t + rng.uniform(0, 6))) * np.cos(t),
+                       32 + (14 + 2 * np.cos((k + 1) * t)) * np.sin(t)], 1) for k in range(2, 6)]
+    rings += [np.array([[10, 10], [50, 10], [50, 50], [10, 50]], float), np.array([[8, 8], [56, 8], [56, 20], [20, 20],
+                                                                              [20, 56], [8, 56]], float)]
+    for ring in rings:
+        counts = []
+        for tol in (0.1, 0.25, 0.5, 1.0, 2.0):
+            c, sharp = fit_ring(ring, tol)
+            counts.append(len(c) // 3)
+            segs = [np.stack([c[3 * s], c[3 * s + 1], c[3 * s + 2], c[(3 * s + 3) % len(c)]]) for s in range(len(c) // 3)]
+            u = np.linspace(0, 1, 200)[:, None]
+            curve = np.concatenate([(1 - u) ** 3 * q[0] + 3 * (1 - u) ** 2 * u * q[1] + 3 * (1 - u) * u**2 * q[2]
+                                    + u**3 * q[3] for q in segs])
+            dense = resample(ring, 0.25)
+            at = resample(ring)[corners(resample(ring))]  # corners move to where the sides meet (fit.sharpen)
+            if len(at):
+                dense = dense[np.hypot(*(dense[:, None] - at[None]).transpose(2, 0, 1)).min(1) > 1.0]
+            dist = np.sqrt(((dense[:, None] - curve[None]) ** 2).sum(-1)).min(1)
+            assert dist.max() <= tol + 0.05, (tol, dist.max())
+        assert all(a >= b for a, b in zip(counts, counts[1:])), counts
+
+
+def test_corners_are_found_and_round_ends_are_not():
+    square = resample(np.array([[10, 10], [50, 10], [50, 50], [10, 50]], float))
+    assert len(corners(square)) == 4
+    t = np.linspace(0, 2 * np.pi, 300, endpoint=False)
+    stadium = resample(np.stack([32 + 20 * np.clip(1.4 * np.cos(t), -1, 1), 32 + 3 * np.sin(t)], 1))  # round ends, r=3
+    circle = resample(np.stack([32 + 3 * np.cos(t), 32 + 3 * np.sin(t)], 1))
+    assert len(corners(circle)) == 0 and len(corners(stadium)) <= 4
+
+
+def test_split_segments_keeps_the_outline():
+    c, sharp = fit_ring(np.array([[10, 10], [50, 12], [48, 50], [12, 46]], float), 0.5)
+    more, flags = split_segments(c, sharp, np.array([0, 2]))
+    assert len(more) == len(c) + 6 and flags.sum() == sharp.sum()
+    a = rasterize_svg(VectorImage(64, 64, [VectorShape([c])]).to_svg(4), 128, 128)
+    b = rasterize_svg(VectorImage(64, 64, [VectorShape([more])]).to_svg(4), 128, 128)
+    assert np.abs(a - b).max() < 0.05
