@@ -19,7 +19,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "im2vec_cli"
 PKG = "im2vec_cli"
 
 LAYERS = {  # first component under im2vec_cli -> layer; higher may import lower or equal
-    "errors": 0, "config": 0, "files": 0, "runtime": 0, "frame": 0, "optim": 0, "checkpoint": 0, "options": 0,
+    "errors": 0, "config": 0, "files": 0, "runtime": 0, "frame": 0, "optim": 0, "checkpoint": 0, "options": 0, "events": 0,
     "raster": 1,
     "vector": 2,
     "trace": 3,

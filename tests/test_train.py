@@ -9,6 +9,7 @@ import torch
 
 from im2vec_cli.config import ModelConfig, TrainConfig
 from im2vec_cli.errors import DataError
+from im2vec_cli.events import NonFinite, TrainStep
 from im2vec_cli.train import evaluate_l2, train
 from tests.helpers import synthetic_shapes
 
@@ -54,6 +55,7 @@ def test_learning_cuts_val_loss_5x(tmp_path, shapes):
     assert list((tmp_path / "run").glob("preview_*.png"))
 
 
+@pytest.mark.slow  # a second full training run (test_learning_cuts_val_loss_5x is the fast check)
 def test_supersampled_loss_trains(tmp_path, shapes):
     """``supersample`` (the finest level box-filtered from 2x2 sub-pixels) is a loss that
     descends; validation scores the same render. A factor below 1, or an unknown pyramid,
@@ -126,7 +128,7 @@ def _stop_after(n):
 
 
 def _raise_kbd(e, n):
-    if e.get("event") == "train" and e["step"] == n:
+    if isinstance(e, TrainStep) and e.step == n:
         raise KeyboardInterrupt
 
 
@@ -269,8 +271,10 @@ def test_nonfinite_loss_is_skipped_and_reported(tmp_path, shapes, monkeypatch):
     monkeypatch.setattr(tr, "reconstruction_loss", sometimes_nan)
     events = []
     train(None, tmp_path / "r", MODEL, fast_cfg(steps=5, ckpt_every=1), images=shapes, on_event=events.append)
-    bad = [e for e in events if e["event"] == "nonfinite"]
-    assert [e["step"] for e in bad] == [3]
+    bad = [e for e in events if isinstance(e, NonFinite)]
+    assert [e.step for e in bad] == [3] and bad[0].in_a_row == 1
+    logged = [x for x in (tmp_path / "r" / "metrics.jsonl").read_text().splitlines() if '"nonfinite"' in x]
+    assert logged == [json.dumps(e.as_dict()) for e in bad]  # the same record (NaN compares only as text)
     state = torch.load(tmp_path / "r" / "checkpoint.pt", weights_only=False)
     assert state["step"] == 5 and all(torch.isfinite(v).all() for v in state["model"].values())
 

@@ -33,6 +33,7 @@ import torch
 from . import infer
 from . import refine as refinement
 from .errors import ConfigError, ModelError
+from .events import Encoding, FeatureData, FeatureTest, Measuring, Skipped
 from .files import as_image
 from .model.pretrained import DEFAULT_MODEL, from_pretrained
 from .options import PARTS, VectorizeOptions
@@ -200,7 +201,9 @@ def train(data_dir, run_dir="runs/latest", model_config=None, train_config=None,
     ``model_config`` / ``train_config``: ``ModelConfig`` / ``TrainConfig`` or dicts of their
     fields. ``init`` (a model or its name) fine-tunes: its weights and config, of which only
     ``options.GROWABLE`` fields may differ in ``model_config`` (new paths start as copies).
-    ``resume`` / ``overwrite`` as ``checkpoint.prepare_run_dir`` says."""
+    ``resume`` / ``overwrite`` as ``checkpoint.prepare_run_dir`` says. ``on_event`` is called
+    with each progress event, a typed ``events.Event`` (``DataLoaded``, ``TrainStep``,
+    ``Validated``, ...; so are those of ``fit_prior``, ``train_aux`` and ``train_features``)."""
     from .config import ModelConfig, TrainConfig
     from .model.pretrained import grow_state
     from .options import GROWABLE
@@ -255,7 +258,7 @@ def _model_and_images(model, output, overwrite: bool, data_dir, emit):
     in_place = _output_folder(output, overwrite, source)
     model = _model(model)
     data, _ = load_folder(split_dir(data_dir, "train"), model.config.image_size, fit=model.config.fit,
-                          on_skip=lambda m: emit({"event": "skip", "message": m}))
+                          on_skip=lambda m: emit(Skipped(m)))
     return source, model, in_place, data
 
 
@@ -273,7 +276,7 @@ def fit_prior(data_dir, model, output, *, components: int = 10, seed: int = 0, o
     source, model, in_place, data = _model_and_images(model, output, overwrite, data_dir, emit)
     if components > max(1, len(data) // 2):
         raise ConfigError(f"components {components}: at most half the {len(data)} images")
-    emit({"event": "encode", "images": len(data)})
+    emit(Encoding(len(data)))
     prior = fit(posterior_means(model, data), components, seed=seed, data=str(data_dir))
     if in_place:
         prior.save(output)
@@ -297,9 +300,8 @@ def train_aux(data_dir, model, output, *, images: int = 2048, steps: int = 3000,
     emit = on_event or (lambda e: None)
     source, model, in_place, data = _model_and_images(model, output, overwrite, data_dir, emit)
     x = data[torch.randperm(len(data), generator=torch.Generator().manual_seed(seed))[:images]].float() / 255
-    emit({"event": "measure", "images": len(x), "paths": model.config.paths})
-    out, report = train_segment_predictor(model, x, AuxSettings(steps=steps, seed=seed),
-                                          on_step=lambda e: emit({"event": "step", **e}))
+    emit(Measuring(len(x), model.config.paths))
+    out, report = train_segment_predictor(model, x, AuxSettings(steps=steps, seed=seed), on_step=emit)
     half = source is not None and stored_half(source)  # as stored: the VAE weights stay bit-identical
 
     def write(folder) -> None:
@@ -329,17 +331,15 @@ def train_features(data_dir, output, *, size: int = 64, fit: str = "resize", ste
     from .train_features import JUNK, FeatureSettings, feature_net_score, train_feature_net
 
     emit = on_event or (lambda e: None)
-    skip = lambda m: emit({"event": "skip", "message": m})  # noqa: E731
+    skip = lambda m: emit(Skipped(m))  # noqa: E731
     x, names = load_folder(split_dir(data_dir, "train"), size, fit=fit, on_skip=skip)
     labels = folder_labels(names)
     classes = sorted(set(labels[0])) + [JUNK] if labels else []  # JUNK: outlier exposure (train_features.py)
     cfg = FeatureConfig(image_size=size, fit=fit, classes=classes, data=str(data_dir))
-    emit({"event": "data", "images": len(x), "classes": len(classes) - 1 if labels else 0,
-          "by": labels[1] if labels else None})
+    emit(FeatureData(len(x), len(classes) - 1 if labels else 0, labels[1] if labels else None))
     index = {c: i for i, c in enumerate(classes)}
     y = torch.tensor([index[c] for c in labels[0]]) if labels else None
-    net = train_feature_net(x, y, cfg, FeatureSettings(steps=steps, seed=seed),
-                            on_step=lambda e: emit({"event": "step", **e}))
+    net = train_feature_net(x, y, cfg, FeatureSettings(steps=steps, seed=seed), on_step=emit)
     tx, tnames = load_folder(split_dir(data_dir, "test"), size, fit=fit, on_skip=skip)
     if classes:
         tlabels = folder_labels(tnames, key=labels[1])[0]
@@ -349,8 +349,8 @@ def train_features(data_dir, output, *, size: int = 64, fit: str = "resize", ste
             net, tx, torch.tensor([index[c] for c in tlabels])))
     else:
         net.config = dataclasses.replace(cfg, test_mse=feature_net_score(net, tx, None))
-    emit({"event": "test", "images": len(tx), "accuracy": net.config.test_accuracy if classes else None,
-          "mse": None if classes else net.config.test_mse})
+    emit(FeatureTest(len(tx), net.config.test_accuracy if classes else None,
+                     None if classes else net.config.test_mse))
     net.save(output)
     return net
 

@@ -33,6 +33,7 @@ from .checkpoint import load_checkpoint, prepare_run_dir, save_checkpoint
 from .config import ModelConfig, TrainConfig
 from .data.folder import find_split_dirs, load_folder, split_indices
 from .errors import DataError, Im2VecError, TrainingError
+from .events import DataLoaded, Event, NonFinite, NoPrior, PriorFitting, Resumed, Skipped, TrainStep, Validated
 from .files import atomic_write, encode_png
 from .model import build_model
 from .model.losses import reconstruction_loss
@@ -242,36 +243,35 @@ def train_step(state: TrainState, ddp_model: torch.nn.Module, train_x: torch.Ten
             "tau": sch["tau"], "grad_norm": float(gnorm), "finite": finite, "images": len(x) * world}
 
 
-def validate(state: TrainState, val_x: torch.Tensor, model_cfg: ModelConfig, cfg: TrainConfig) -> dict:
+def validate(state: TrainState, val_x: torch.Tensor, model_cfg: ModelConfig, cfg: TrainConfig) -> Validated:
     """The ``val`` event: ``evaluate_l2`` of the exported weights (with an EMA, the raw
     weights' figures are kept under ``raw_*``)."""
     val = lambda m: evaluate_l2(m, val_x, model_cfg.segments, cfg.tau_end,  # noqa: E731
                                 supersample=cfg.supersample, pyramid=cfg.pyramid)
-    rec = {"event": "val", "step": state.step, **val(state.model)}
+    figures = val(state.model)
     if state.ema is not None:
-        rec = {**rec, **{f"raw_{k}": v for k, v in rec.items() if k not in ("event", "step")}, **val(state.exported)}
-    return {**rec, "time": time.time()}
+        figures = {**figures, **{f"raw_{k}": v for k, v in figures.items()}, **val(state.exported)}
+    return Validated(state.step, figures, time.time())
 
 
 class _Log:
     """Events go to ``on_event`` and (rank 0) to ``RUN/metrics.jsonl``; ``train`` events carry
     the throughput since the last one."""
 
-    def __init__(self, path: Path, emit: Callable[[dict], None], main: bool):
+    def __init__(self, path: Path, emit: Callable[[Event], None], main: bool):
         self.path, self.emit, self.main = path, emit, main
         self.t_last, self.n_last = time.perf_counter(), 0
 
-    def __call__(self, rec: dict) -> None:
-        self.emit(rec)
+    def __call__(self, event: Event) -> None:
+        self.emit(event)
         if self.main:
             with open(self.path, "a") as f:
-                f.write(json.dumps(rec) + "\n")
+                f.write(json.dumps(event.as_dict()) + "\n")
 
     def train(self, step: int, out: dict) -> None:
         now = time.perf_counter()
         figures = {k: v for k, v in out.items() if k not in ("finite", "images")}
-        self({"event": "train", "step": step, **figures, "img_per_s": self.n_last / max(1e-9, now - self.t_last),
-              "time": time.time()})
+        self(TrainStep(step, figures, self.n_last / max(1e-9, now - self.t_last), time.time()))
         self.t_last, self.n_last = now, 0
 
 
@@ -289,7 +289,7 @@ def train(
     val_dir: str | Path | None = None,
     resume: bool = False,
     overwrite: bool = False,
-    on_event: Callable[[dict], None] | None = None,
+    on_event: Callable[[Event], None] | None = None,
     images: torch.Tensor | None = None,
     epochs: float | None = None,
     init_state: dict[str, torch.Tensor] | None = None,
@@ -313,14 +313,14 @@ def train(
         prepare_run_dir(run_dir, resume, overwrite, data_dir)
     model = _build(model_cfg, train_cfg.seed, device, init_state)  # first: a bad config fails before the data loads
     train_x, val_x = load_splits(data_dir, val_dir, model_cfg, train_cfg, images,
-                                 lambda msg: emit({"event": "skip", "message": msg}) if main else None)
+                                 lambda msg: emit(Skipped(msg)) if main else None)
     if epochs:
         train_cfg = dataclasses.replace(train_cfg, steps=max(1, round(epochs * len(train_x) / train_cfg.batch)))
-    emit({"event": "data", "train": len(train_x), "val": len(val_x), "steps": train_cfg.steps})
+    emit(DataLoaded(len(train_x), len(val_x), train_cfg.steps))
     state, ckpt = TrainState.create(model, train_cfg, rank), run_dir / "checkpoint.pt"
     if resume:
         state.load(ckpt, model_cfg, rank)
-        emit({"event": "resume", "step": state.step})
+        emit(Resumed(state.step))
     ddp_model = model if world == 1 else torch.nn.parallel.DistributedDataParallel(  # some heads are idle by
         model, device_ids=[device.index] if device.type == "cuda" else None, find_unused_parameters=True)  # config
     if main:
@@ -329,12 +329,12 @@ def train(
           rank, world)
     if main:
         if len(train_x) >= PRIOR_MIN_IMAGES:
-            emit({"event": "prior", "images": len(train_x)})
+            emit(PriorFitting(len(train_x)))
             prior = fit_run_prior(state.exported, train_x, str(data_dir or ""), state.step, train_cfg.seed)
             prior.save(run_dir)  # beside checkpoint.pt, for `export`
             state.exported.latent_prior = prior
         else:
-            emit({"event": "no_prior", "images": len(train_x), "needed": PRIOR_MIN_IMAGES})
+            emit(NoPrior(len(train_x), PRIOR_MIN_IMAGES))
         save_pretrained(state.exported, run_dir / "model")
     if world > 1:
         dist.barrier()
@@ -376,8 +376,7 @@ def _loop(state: TrainState, ddp_model, train_x, val_x, model_cfg: ModelConfig, 
             step = state.step
             bad_run = 0 if out["finite"] else bad_run + 1
             if not out["finite"]:
-                log({"event": "nonfinite", "step": step, "loss": out["loss"], "grad_norm": out["grad_norm"],
-                     "in_a_row": bad_run, "time": time.time()})
+                log(NonFinite(step, out["loss"], out["grad_norm"], bad_run, time.time()))
                 if bad_run >= MAX_NONFINITE_IN_A_ROW:
                     raise TrainingError(
                         f"the loss or gradient was not finite for {bad_run} steps in a row (up to step {step}); "

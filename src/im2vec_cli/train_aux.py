@@ -13,6 +13,7 @@ from collections.abc import Callable
 
 import torch
 
+from .events import AuxStep
 from .model.segments import SWEEP, SegmentPredictor, curve, fit_loss
 from .model.vae import Im2Vec
 from .raster import render_coverage
@@ -60,7 +61,7 @@ def train_segment_predictor(
     model: Im2Vec,
     images: torch.Tensor,
     settings: AuxSettings = AuxSettings(),
-    on_step: Callable[[dict], None] | None = None,
+    on_step: Callable[[AuxStep], None] | None = None,
 ) -> tuple[Im2Vec, dict]:
     """A copy of ``model`` with a fitted segment predictor, and a report.
 
@@ -86,7 +87,7 @@ def train_segment_predictor(
         sched.step()
         if on_step and (step % 250 == 0 or step == s.steps - 1):
             with torch.no_grad():
-                on_step({"step": step, "fit": loss.item(), "val_fit": fit_loss(pred(codes[val]), ks, losses[val]).item()})
+                on_step(AuxStep(step, loss.item(), fit_loss(pred(codes[val]), ks, losses[val]).item()))
     with torch.no_grad():
         pv = pred(codes[val])
         report = {

@@ -18,6 +18,7 @@ from collections.abc import Callable
 import torch
 import torch.nn.functional as F
 
+from .events import FeatureStep
 from .model.features import WORK_SIZE, FeatureConfig, FeatureNet
 
 
@@ -76,7 +77,7 @@ def train_feature_net(
     labels: torch.Tensor | None,
     config: FeatureConfig,
     settings: FeatureSettings = FeatureSettings(),
-    on_step: Callable[[dict], None] | None = None,
+    on_step: Callable[[FeatureStep], None] | None = None,
 ) -> FeatureNet:
     """A feature net trained on ``images (N, 3, S, S)`` uint8 (``labels (N,)`` for a classifier,
     whose ``config.classes`` names them; ``None`` with no classes for an autoencoder)."""
@@ -106,7 +107,7 @@ def train_feature_net(
         opt.step()
         sched.step()
         if on_step and (step % 100 == 0 or step == s.steps - 1):
-            on_step({"step": step, "loss": loss.item()})
+            on_step(FeatureStep(step, loss.item()))
     return net.eval()
 
 

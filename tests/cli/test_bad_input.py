@@ -132,6 +132,7 @@ def test_all_black_is_one_canvas_square(tmp_path, model_dir):
     assert img.max() < 0.01  # every pixel black, as in the input
 
 
+@pytest.mark.slow  # three real processes under an address-space cap
 def test_resource_bounds_under_a_memory_limit(tmp_path):
     """Endless stdin, a huge render and a huge SVG, as real processes limited to 4 GiB of
     address space: each is refused with one error line (before the fixes: 20 GB resident,

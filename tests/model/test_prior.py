@@ -281,6 +281,7 @@ def test_fit_prior_and_train_features_commands(tmp_path, model):
     assert res.exit_code == 2 and "at most half" in res.output
     res = run(["train-features", str(data), "-o", str(tmp_path / "f"), "--size", "32", "--steps", "30"])
     assert res.exit_code == 0, res.output
+    assert "training a classifier of 3 classes" in res.stderr and "test accuracy" in res.stderr  # its events, said
     net = FeatureNet.load(tmp_path / "f")
     assert net.config.classes == ["circle", "letter", "star", JUNK] and 0 <= net.config.test_accuracy <= 1
     res = run(["eval", "--model", folder, "--data", str(data), "--features", str(tmp_path / "f"), "--samples", "20",

@@ -99,6 +99,7 @@ def test_train_aux_then_auto_segments(tmp_path):
     tiny = make_tiny_model(tmp_path / "tiny")
     res = run(["train-aux", str(data), "--model", tiny, "-o", str(tmp_path / "aux"), "--images", "16", "--steps", "200"])
     assert res.exit_code == 0, res.output
+    assert "measuring 16 images" in res.stderr and "step 199: fit" in res.stderr  # its events, said
     model = from_pretrained(tmp_path / "aux")
     assert model.segment_predictor is not None
     base = from_pretrained(tiny)

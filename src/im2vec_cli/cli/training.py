@@ -5,6 +5,23 @@ from __future__ import annotations
 import click
 
 from ..errors import ConfigError, Im2VecError
+from ..events import (
+    AuxStep,
+    DataLoaded,
+    Encoding,
+    Event,
+    FeatureData,
+    FeatureStep,
+    FeatureTest,
+    Measuring,
+    NonFinite,
+    NoPrior,
+    PriorFitting,
+    Resumed,
+    Skipped,
+    TrainStep,
+    Validated,
+)
 from ..options import ARCHS, FITS, GROUPINGS
 from .app import EXIT_HELP, cli, warn
 from .options import SEED, Finite, device_option, load_model, model_options, nonempty
@@ -35,17 +52,17 @@ def _configs(config_file, model_opts: dict, train_opts: dict):
     return ModelConfig.from_dict(m), TrainConfig.from_dict(t), m
 
 
-def _say(e: dict) -> None:
+def _say(e: Event) -> None:
     """Events of fit-prior and train-aux -> stderr lines."""
-    kind = e.get("event")
-    if kind == "skip":
-        warn(f"skipped {e['message']}")
-    elif kind == "encode":
-        click.echo(f"encoding {e['images']} images", err=True)
-    elif kind == "measure":
-        click.echo(f"measuring {e['images']} images x {e['paths']} paths", err=True)
-    elif kind == "step":
-        click.echo(f"step {e['step']}: fit {e['fit']:.4f}, held-out {e['val_fit']:.4f}", err=True)
+    match e:
+        case Skipped(message=m):
+            warn(f"skipped {m}")
+        case Encoding(images=n):
+            click.echo(f"encoding {n} images", err=True)
+        case Measuring(images=n, paths=p):
+            click.echo(f"measuring {n} images x {p} paths", err=True)
+        case AuxStep(step=step, fit=fit, val_fit=val_fit):
+            click.echo(f"step {step}: fit {fit:.4f}, held-out {val_fit:.4f}", err=True)
 
 
 class _Progress:
@@ -54,31 +71,30 @@ class _Progress:
     def __init__(self, device):
         self.device, self.bar = device, None
 
-    def __call__(self, e: dict) -> None:
+    def __call__(self, e: Event) -> None:
         from ..runtime import progress
 
-        kind = e.get("event")
-        if kind == "skip":
-            warn(f"skipped {e['message']}")
-        elif kind == "data":
-            click.echo(f"training on {e['train']} images, validating on {e['val']} ({self.device})", err=True)
-            self.bar = progress(total=e["steps"], desc="train", unit="step")
-        elif kind == "resume":
-            self.bar.update(e["step"])
-        elif kind == "train":
-            self.bar.set_postfix(loss=f"{e['loss']:.4f}", img_s=f"{e['img_per_s']:.0f}", k=e["k"])
-            self.bar.update(e["step"] - self.bar.n)
-            if self.bar.disable:
-                click.echo(f"step {e['step']} loss {e['loss']:.5f} img/s {e['img_per_s']:.0f}", err=True)
-        elif kind == "nonfinite":
-            warn(f"step {e['step']}: loss or gradient not finite, update skipped ({e['in_a_row']} in a row)")
-        elif kind == "prior":
-            click.echo(f"fitting the latent prior to the {e['images']} training images' latents", err=True)
-        elif kind == "no_prior":
-            warn(f"no latent prior: {e['images']} training image (it needs {e['needed']}); "
-                 "`sample` draws from N(0, I)")
-        elif kind == "val":
-            click.echo(f"step {e['step']}: val pyramid L2 {e['val_pyramid_l2']:.5f}, MSE {e['val_mse']:.5f}", err=True)
+        match e:
+            case Skipped(message=m):
+                warn(f"skipped {m}")
+            case DataLoaded(train=n, val=v, steps=steps):
+                click.echo(f"training on {n} images, validating on {v} ({self.device})", err=True)
+                self.bar = progress(total=steps, desc="train", unit="step")
+            case Resumed(step=step):
+                self.bar.update(step)
+            case TrainStep(step=step, figures=f, img_per_s=speed):
+                self.bar.set_postfix(loss=f"{f['loss']:.4f}", img_s=f"{speed:.0f}", k=f["k"])
+                self.bar.update(step - self.bar.n)
+                if self.bar.disable:
+                    click.echo(f"step {step} loss {f['loss']:.5f} img/s {speed:.0f}", err=True)
+            case NonFinite(step=step, in_a_row=n):
+                warn(f"step {step}: loss or gradient not finite, update skipped ({n} in a row)")
+            case PriorFitting(images=n):
+                click.echo(f"fitting the latent prior to the {n} training images' latents", err=True)
+            case NoPrior(images=n, needed=needed):
+                warn(f"no latent prior: {n} training image (it needs {needed}); `sample` draws from N(0, I)")
+            case Validated(step=step, figures=f):
+                click.echo(f"step {step}: val pyramid L2 {f['val_pyramid_l2']:.5f}, MSE {f['val_mse']:.5f}", err=True)
 
     def close(self) -> None:
         if self.bar is not None:
@@ -238,18 +254,18 @@ def train_features(data_dir, output, size, fit, steps, seed):
     """
     from .. import api
 
-    def say(e: dict) -> None:
-        kind = e["event"]
-        if kind == "skip":
-            warn(f"skipped {e['message']}")
-        elif kind == "data":
-            kind_of = f"a classifier of {e['classes']} classes (by {e['by']} name)" if e["by"] else "an autoencoder"
-            click.echo(f"training {kind_of} on {e['images']} images", err=True)
-        elif kind == "step" and e["step"] % 500 == 0:
-            click.echo(f"step {e['step']}: loss {e['loss']:.4f}", err=True)
-        elif kind == "test":
-            what = f"accuracy {e['accuracy']:.4f}" if e["accuracy"] is not None else f"reconstruction MSE {e['mse']:.5f}"
-            click.echo(f"test {what} on {e['images']} images", err=True)
+    def say(e: Event) -> None:
+        match e:
+            case Skipped(message=m):
+                warn(f"skipped {m}")
+            case FeatureData(images=n, classes=c, by=by):
+                kind_of = f"a classifier of {c} classes (by {by} name)" if by else "an autoencoder"
+                click.echo(f"training {kind_of} on {n} images", err=True)
+            case FeatureStep(step=step, loss=loss) if step % 500 == 0:
+                click.echo(f"step {step}: loss {loss:.4f}", err=True)
+            case FeatureTest(images=n, accuracy=acc, mse=mse):
+                what = f"accuracy {acc:.4f}" if acc is not None else f"reconstruction MSE {mse:.5f}"
+                click.echo(f"test {what} on {n} images", err=True)
 
     api.train_features(data_dir, output, size=size, fit=fit, steps=steps, seed=seed, on_event=say)
     click.echo(f"feature net written to {output}", err=True)

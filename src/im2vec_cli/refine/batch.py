@@ -8,6 +8,7 @@ from collections.abc import Callable
 
 import torch
 
+from ..events import RefineStep
 from ..infer import flat_result
 from ..model.vae import Im2Vec
 from ..options import PARTS
@@ -29,7 +30,7 @@ def refine(
     quality: float | None = None,
     max_paths: int | None = None,
     settings: RefineSettings = RefineSettings(),
-    on_step: Callable[[dict], None] | None = None,
+    on_step: Callable[[RefineStep], None] | None = None,
 ) -> tuple[VectorImage, dict]:
     """Vectorise one image ``(3, H, W)`` in [0, 1] and refine the result against it.
 
@@ -69,7 +70,7 @@ def refine_batch(
     quality: float | None = None,
     max_paths: int | None = None,
     settings: RefineSettings = RefineSettings(),
-    on_step: Callable[[dict], None] | None = None,
+    on_step: Callable[[RefineStep], None] | None = None,
     batch: int = REFINE_BATCH,
 ) -> list[tuple[VectorImage, dict]]:
     """``refine`` of many images ``(3, H_i, W_i)``: images of one size are refined together,

@@ -10,6 +10,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from ..events import RefineStep
 from ..optim import Adam
 from ..raster import gaussian_pyramid, polygon_area, pyramid_l2, render_pyramid, segment_controls
 from ..trace import Corners
@@ -231,8 +232,7 @@ class _Fitter:
             if joins is not None:
                 _align(pts, joins, self.size)
             if on_step:
-                on_step({"stage": stage, "step": i, "loss": float(fit.detach().mean()), "tau": tau,
-                         "images": len(progress.live)})
+                on_step(RefineStep(stage, i, float(fit.detach().mean()), len(progress.live), tau))
             for k in progress.live:
                 taken[k] = i + 1
             if i < anneal:  # compare losses only at the final tau

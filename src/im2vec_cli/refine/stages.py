@@ -7,6 +7,7 @@ from collections.abc import Callable
 import torch
 import torch.nn.functional as F
 
+from ..events import RefineStep
 from ..frame import Placement
 from ..infer import model_input, segment_counts, to_vector
 from ..model.vae import Im2Vec
@@ -28,7 +29,7 @@ class Refinement:
     """
 
     def __init__(self, model: Im2Vec, images: list[torch.Tensor], settings: RefineSettings,
-                 on_step: Callable[[dict], None] | None = None):
+                 on_step: Callable[[RefineStep], None] | None = None):
         s = self.s = settings
         self.model, self.images, self.on_step = model, images, on_step
         self.device = next(model.parameters()).device
@@ -74,7 +75,7 @@ class Refinement:
             for _, j in progress.record(loss.tolist())[0]:
                 best_z[j] = z[j].detach()
             if self.on_step:
-                self.on_step({"stage": "latent", "step": i, "loss": float(loss.detach().mean()), "images": len(sel)})
+                self.on_step(RefineStep("latent", i, float(loss.detach().mean()), len(sel)))
             if not progress.live:
                 break
         return best_z, [len(h) for h in progress.hist]
