@@ -4,7 +4,7 @@ DATA ?= data
 PIP ?= .venv/bin/pip
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: install test test-slow fuzz lint bench bench-cli bench-safety bench-vectorize bench-outlines bench-folder results demo data-fonts data-mnist data-emoji data-icons clean
+.PHONY: install test test-slow fuzz lint bench bench-cli bench-safety bench-hardening bench-vectorize bench-outlines bench-folder results demo data-fonts data-mnist data-emoji data-icons clean
 
 install: .venv/.installed
 
@@ -37,6 +37,9 @@ bench: install
 CLI_BEFORE ?= 549518d
 bench-safety: install
 	$(PY) bench/safety.py --out docs/safety-run.md
+
+bench-hardening: install
+	$(PY) bench/hardening.py --out docs/hardening-run.md
 
 bench-cli: install
 	test -f /usr/share/fonts/truetype/freefont/FreeSerif.ttf || (apt-get update -q && apt-get install -y -q fonts-freefont-ttf)

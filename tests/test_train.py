@@ -198,6 +198,7 @@ def test_cli_train_init_fine_tunes_from_a_model(tmp_path, shapes):
     assert grown.config == dataclasses.replace(start.config, paths=3, grouping="nonzero")
 
 
+@pytest.mark.slow  # two DDP processes (gloo)
 def test_ddp_two_cpu_processes(tmp_path, shapes):
 
     d = _png_folder(tmp_path / "data", shapes[:16])

@@ -32,7 +32,7 @@ import torch
 
 from . import infer
 from . import refine as refinement
-from .errors import ConfigError, ModelError
+from .errors import ConfigError, ModelError, VectorizeError, describe
 from .events import Encoding, FeatureData, FeatureTest, Measuring, Skipped
 from .files import as_image
 from .model.pretrained import DEFAULT_MODEL, from_pretrained
@@ -43,7 +43,8 @@ from .trace import simplify
 from .vector import VectorImage
 
 __all__ = ["VectorizeOptions", "decode", "encode", "export", "fit_prior", "interpolate", "load_feature_net",
-           "load_model", "prior_latents", "sample", "train", "train_aux", "train_features", "vectorize"]
+           "load_model", "prior_latents", "sample", "train", "train_aux", "train_features", "vectorize",
+           "vectorize_each"]
 
 
 def load_model(name_or_dir: str = DEFAULT_MODEL, device: str | torch.device = "auto"):
@@ -108,6 +109,34 @@ def vectorize(images, model=DEFAULT_MODEL, options: VectorizeOptions | None = No
     else:
         out = [simplify(v, o.simplify_px or 0.0) for v in infer.vectorize(model, pictures, **kw)]
     return out[0] if one else out
+
+
+def vectorize_each(images: list, model=DEFAULT_MODEL, options: VectorizeOptions | None = None,
+                   **fields) -> list[VectorImage | VectorizeError]:
+    """``vectorize`` of a list of pictures in which one picture's failure is its own: each entry
+    is the picture's ``VectorImage``, or a ``VectorizeError`` (one line) where its pipeline
+    raised anything (a dependency's error, memory running out). The pictures are vectorized
+    together; when that fails, each is vectorized alone, to find which. Options and the model
+    are checked first: a bad option raises, as in ``vectorize``."""
+    o = dataclasses.replace(options or VectorizeOptions(), **fields)
+    model = _model(model)
+    check_segments(model, o.segments)
+    try:
+        return vectorize(list(images), model, o)
+    except Exception as exc:  # noqa: BLE001 - any failure is one picture's; KeyboardInterrupt is not caught
+        if len(images) == 1:
+            return [_failed(exc)]
+    out: list = []
+    for img in images:
+        try:
+            out.append(vectorize([img], model, o)[0])
+        except Exception as exc:  # noqa: BLE001
+            out.append(_failed(exc))
+    return out
+
+
+def _failed(exc: Exception) -> VectorizeError:
+    return exc if isinstance(exc, VectorizeError) else VectorizeError(f"could not vectorize: {describe(exc)}")
 
 
 def check_segments(model, segments: int | str | None) -> None:

@@ -23,3 +23,23 @@ class TrainingError(Im2VecError):
 
 class ConfigError(Im2VecError, ValueError):
     """A configuration value no model or run can use (also a ``ValueError``, for programmers)."""
+
+
+class TraceError(Im2VecError):
+    """A picture is beyond what tracing can bound (too many regions, too fragmented)."""
+
+
+class VectorizeError(Im2VecError):
+    """One picture's pipeline failed (any exception inside it); the others of its batch go on."""
+
+
+def describe(exc: BaseException) -> str:
+    """One line for an exception the library did not raise on purpose (a dependency's error,
+    memory running out): its own message for an ``Im2VecError``, else what happened and the
+    exception's type, without a traceback."""
+    if isinstance(exc, Im2VecError):
+        return str(exc)
+    if isinstance(exc, MemoryError) or "can't allocate memory" in str(exc) or "out of memory" in str(exc).lower():
+        return "out of memory (" + (str(exc).splitlines() or ["MemoryError"])[0][:200] + ")"
+    text = (str(exc).splitlines() or [""])[0][:200]
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__

@@ -32,20 +32,20 @@ def _init(model_ref: str, device: str, seed: int, threads: int, options: Vectori
 
 
 def _run(pictures: list) -> list:
-    from .api import vectorize
+    from .api import vectorize_each
 
-    return vectorize(pictures, _state["model"], _state["options"])
+    return vectorize_each(pictures, _state["model"], _state["options"])
 
 
 def vectorize_chunks(chunks: Iterable[list], model_ref: str, *, jobs: int, threads: int | None = None,
                      device: str = "auto", seed: int = 0, options: VectorizeOptions | None = None
                      ) -> Iterator[list]:
-    """``api.vectorize(chunk, model, options)`` for each chunk of pictures, in ``jobs``
+    """``api.vectorize_each(chunk, model, options)`` for each chunk of pictures, in ``jobs``
     worker processes (each with ``threads`` torch threads, default the free cores shared
     among the jobs, ``runtime.free_cores``, and the model
     ``model_ref``, a name or a folder). Yields each chunk's vector images in the order of
-    the chunks; at most ``2 * jobs`` chunks are in flight, so memory stays bounded for any
-    number of chunks."""
+    the chunks (a picture that failed is a ``VectorizeError`` in its place); at most
+    ``2 * jobs`` chunks are in flight, so memory stays bounded for any number of chunks."""
     if jobs < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
     if threads is None:

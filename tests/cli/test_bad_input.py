@@ -155,3 +155,25 @@ def test_resource_bounds_under_a_memory_limit(tmp_path):
         assert r.returncode == 1, (args, r.stderr[-500:])
         assert r.stderr.count("Error:") == 1 and message in r.stderr and "Traceback" not in r.stderr, r.stderr
     assert not list(tmp_path.glob("out*")) and not list(tmp_path.glob(".out*"))
+
+
+@pytest.mark.parametrize("exc, line", [(RuntimeError("DefaultCPUAllocator: can't allocate memory"),
+                                        "Error: out of memory (DefaultCPUAllocator: can't allocate memory)"),
+                                       (MemoryError(), "Error: out of memory (MemoryError)"),
+                                       (KeyError("x"), "Error: KeyError: 'x'")])
+def test_whatever_a_dependency_raises_is_one_line(tmp_path, monkeypatch, exc, line):
+    """Nothing ends in a traceback: an error no check foresaw (memory running out in NumPy or
+    torch, a dependency's bug) is one `Error:` line, exit 1, no output file."""
+    from click.testing import CliRunner
+
+    import im2vec_cli.vector as vector
+    from im2vec_cli.cli import cli
+
+    def boom(*a, **k):
+        raise exc
+
+    monkeypatch.setattr(vector, "from_svg", boom)
+    (tmp_path / "a.svg").write_text('<svg xmlns="http://www.w3.org/2000/svg" width="8" height="8"/>')
+    res = CliRunner().invoke(cli, ["render", str(tmp_path / "a.svg"), "-o", str(tmp_path / "a.png")])
+    assert res.exit_code == 1 and res.stderr.strip() == line, res.output
+    assert not (tmp_path / "a.png").exists()

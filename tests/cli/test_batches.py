@@ -115,6 +115,7 @@ def test_ctrl_c_in_a_real_process_leaves_only_complete_svgs(tmp_path, model_dir,
     assert [p.name for p in out.iterdir() if p.suffix != ".svg"] == []
 
 
+@pytest.mark.slow  # four real processes; in-process runs are checked byte-identical by the batch tests
 def test_determinism_byte_identical(tmp_path, model_dir):
     """Same input, model and seed: byte-identical SVGs from separate processes."""
     src = png(tmp_path / "a.png", 37, 29)
@@ -179,3 +180,73 @@ def test_sample_streams_and_bounds_the_contact_sheet(tmp_path, model_dir, monkey
     assert whole.exit_code == 0
     for p in (tmp_path / "s").glob("sample_*.svg"):  # chunking changes nothing
         assert p.read_bytes() == (tmp_path / "t" / p.name).read_bytes()
+
+
+def test_one_pictures_failure_is_its_own(tmp_path, model_dir, monkeypatch):
+    """Any exception inside one picture's pipeline (injected: a dependency's error in the
+    outline step of the 33 px picture) fails that picture alone: every other SVG is written,
+    the bad picture is named in one line, exit 1, no traceback."""
+    import im2vec_cli.trace.pipeline as pipeline
+
+    real = pipeline.untangle
+
+    def flaky(vec):
+        if vec.width == 33:
+            raise RuntimeError("operation did not succeed")
+        return real(vec)
+
+    monkeypatch.setattr(pipeline, "untangle", flaky)
+    d = tmp_path / "in"
+    d.mkdir()
+    for i, size in enumerate((32, 33, 32, 34)):
+        glyph_like(size).save(d / f"g{i}.png")
+    res = CliRunner().invoke(cli, ["vectorize", str(d), "-o", str(tmp_path / "out"), "--model", model_dir])
+    assert res.exit_code == 1 and "Traceback" not in res.output
+    errors = [x for x in res.stderr.splitlines() if x.startswith("Error:")]
+    assert errors[0] == f"Error: {d / 'g1.png'}: could not vectorize: RuntimeError: operation did not succeed"
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["g0.svg", "g2.svg", "g3.svg"]
+
+
+def test_a_worker_returns_a_failed_picture_in_its_place(model_dir):
+    """In worker processes too: a picture that fails (here: too small to hold a shape) comes
+    back as a VectorizeError in its place, the others as vector images."""
+    import numpy as np
+
+    from im2vec_cli import parallel
+    from im2vec_cli.errors import VectorizeError
+
+    good = np.asarray(glyph_like(32).convert("RGB"), np.float32) / 255
+    bad = np.zeros((2, 2, 3), np.float32)
+    (out,) = parallel.vectorize_chunks([[good, bad, good]], model_dir, jobs=1, threads=1, device="cpu")
+    assert [type(v).__name__ for v in out] == ["VectorImage", "VectorizeError", "VectorImage"]
+    assert isinstance(out[1], VectorizeError) and str(out[1]) == "could not vectorize: image too small (2x2 pixels; at least 4 per side)"
+
+
+@pytest.mark.slow  # worker processes, then a real SIGTERM
+def test_sigterm_ends_a_worker_batch_cleanly(tmp_path, model_dir):
+    """SIGTERM into `vectorize --jobs 2`: exit 143, one `Terminated.` line, no resource-tracker
+    warning, no traceback, no worker left, every SVG written complete and no temp file."""
+    import signal
+    import time
+
+    d = tmp_path / "in"
+    d.mkdir()
+    for i in range(200):
+        glyph_like(32 + i % 3).save(d / f"g{i:03d}.png")
+    out = tmp_path / "out"
+    p = subprocess.Popen(EXE + ["vectorize", str(d), "-o", str(out), "--model", model_dir, "--jobs", "2"],
+                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    while time.time() < deadline and not (out.exists() and any(out.iterdir())):
+        time.sleep(0.2)  # until the first SVGs are written
+    p.send_signal(signal.SIGTERM)
+    err = p.communicate(timeout=30)[1]
+    assert p.returncode == 143, err
+    assert "resource_tracker" not in err and "Traceback" not in err and err.strip().endswith("Terminated."), err
+    time.sleep(3)
+    left = subprocess.run(["pgrep", "-f", str(d)], capture_output=True, text=True).stdout.split()
+    assert left == []
+    written = list(out.iterdir())
+    assert written and all(not f.name.startswith(".") for f in written)
+    for f in written:
+        check_svg(f.read_text(), 32 + int(f.stem[1:]) % 3, 32 + int(f.stem[1:]) % 3)

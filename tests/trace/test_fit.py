@@ -52,3 +52,19 @@ def test_split_segments_keeps_the_outline():
     a = rasterize_svg(VectorImage(64, 64, [VectorShape([c])]).to_svg(4), 128, 128)
     b = rasterize_svg(VectorImage(64, 64, [VectorShape([more])]).to_svg(4), 128, 128)
     assert np.abs(a - b).max() < 0.05
+
+
+def test_fitting_in_blocks_gives_what_fitting_at_once_gives(monkeypatch):
+    """Many runs are fitted in batches of bounded memory (FIT_BLOCK padded points), shortest
+    first; each run gets the cubics it gets in one batch."""
+    import im2vec_cli.trace.fit as fit
+
+    rng = np.random.default_rng(1)
+    t = np.linspace(0, 2 * np.pi, 300, endpoint=False)
+    rings = [np.stack([32 + r * np.cos(t) + rng.normal(0, 0.2, 300), 32 + 0.7 * r * np.sin(t)], 1)
+             for r in rng.uniform(5, 25, 12)]
+    at_once = fit.fit_rings(rings, 0.5)
+    monkeypatch.setattr(fit, "FIT_BLOCK", 400)
+    blocked = fit.fit_rings(rings, 0.5)
+    for (a, fa), (b, fb) in zip(at_once, blocked):
+        assert a.shape == b.shape and np.allclose(a, b, atol=1e-6) and np.array_equal(fa, fb)

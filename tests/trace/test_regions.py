@@ -1,10 +1,14 @@
-"""The picture's regions (``trace/regions.py``): two-tone detection and the palette."""
+"""The picture's regions (``trace/regions.py``): two-tone detection, the palette, hard-edged
+pictures, specks and the region bound."""
 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
-from im2vec_cli.trace.regions import quantize, two_tone
+from im2vec_cli.errors import TraceError
+from im2vec_cli.trace.palette import _absorb_specks, hard_palette, quantize
+from im2vec_cli.trace.regions import two_tone
 from tests.trace.outlines import picture
 
 
@@ -18,3 +22,72 @@ def test_two_tone_and_palette_detection():
     palette, labels = quantize(face.permute(1, 2, 0).double().numpy(), None)
     assert len(palette) == 3  # white, yellow, and the thin black outline with the eyes
     assert any(np.abs(p).max() < 0.15 for p in palette)
+
+
+def _blocks(size=64, block=8, colors=5, seed=1):
+    rng = np.random.default_rng(seed)
+    palette = rng.integers(0, 256, (colors, 3)) / 255
+    grid = palette[rng.integers(0, colors, (size // block, size // block))]
+    return np.kron(grid, np.ones((block, block, 1)))  # (H, W, 3), every pixel exactly one colour
+
+
+def test_a_hard_edged_picture_is_traced_exactly_along_its_pixels():
+    """Pixel art / a mosaic: the SVG renders back to the very pixels (cairosvg), every side a
+    straight segment on the pixel grid; an anti-aliased picture of few colours is not taken
+    for one."""
+    from im2vec_cli.trace.outline import traced
+    from im2vec_cli.vector import rasterize_svg
+
+    img = _blocks()
+    assert hard_palette(img) is not None
+    vec, flags, exact = traced(img, 0.5)
+    assert exact and all(f.all() for fl in flags for f in fl)  # every corner sharp
+    back = rasterize_svg(vec.to_svg(), 64, 64)
+    assert np.abs(back - img).max() < 2 / 255  # no seam, no crack, no rounded corner
+    for sh in vec.shapes:
+        for c in sh.contours:
+            a = c[0::3]
+            assert np.allclose(a, np.round(a)) and np.allclose(c[1::3], a + (np.roll(a, -1, 0) - a) / 3)
+    aa = picture('<rect x="8.5" y="8.5" width="30" height="20" fill="#c03030"/>'
+                 '<circle cx="40" cy="40" r="15" fill="#3050c0"/>').permute(1, 2, 0).double().numpy()
+    assert hard_palette(aa) is None  # its edges blend two colours
+
+
+def test_pictures_beyond_the_region_bound_are_one_trace_error(monkeypatch):
+    """A one-pixel checkerboard (two-tone: its outlines) and noise (its pieces) are refused by
+    count, before the work that would take minutes; --max-paths lifts the piece bound."""
+    import im2vec_cli.trace.regions as regions
+
+    monkeypatch.setattr(regions, "MAX_REGIONS", 50)
+    checker = np.broadcast_to((np.indices((64, 64)).sum(0) % 2)[..., None], (64, 64, 3)).astype(float)
+    with pytest.raises(TraceError, match="2,048 outlines"):
+        regions.trace(checker)
+    noise = np.random.default_rng(0).random((64, 64, 3))
+    with pytest.raises(TraceError, match="--max-paths"):
+        regions.trace(noise)
+    assert len(regions.trace(noise, max_regions=10)) <= 10  # the ten largest
+
+
+def _absorb_one_at_a_time(labels, min_px):
+    """The reference: each speck in turn takes the commonest label of its 4-neighbours."""
+    from scipy.ndimage import binary_dilation, label
+
+    labels = labels.copy()
+    for k in np.unique(labels):
+        pieces, _ = label(labels == k)
+        sizes = np.bincount(pieces.ravel())
+        for p in np.nonzero(sizes[1:] < min_px)[0] + 1:
+            piece = pieces == p
+            around = labels[binary_dilation(piece) & ~piece]
+            around = around[around != k]
+            if len(around):
+                labels[piece] = np.bincount(around).argmax()
+    return labels
+
+
+def test_specks_absorbed_at_once_as_one_at_a_time():
+    rng = np.random.default_rng(3)
+    for size, k, min_px in ((40, 3, 4), (64, 6, 9), (33, 2, 30)):
+        labels = rng.integers(0, k, (size // 4, size // 4)).repeat(4, 0).repeat(4, 1)[:size, :size]
+        labels = np.where(rng.random(labels.shape) < 0.08, rng.integers(0, k, labels.shape), labels)
+        assert np.array_equal(_absorb_specks(labels, min_px), _absorb_one_at_a_time(labels, min_px))

@@ -7,7 +7,7 @@ group and the error mapping, ``streams`` stdin/stdout and atomic writes, ``batch
 runner and its ``Report``, ``options`` the shared options.
 
 Exit codes: 0 success; 1 an error (bad input, bad model, failed write; some files of a
-batch failed); 2 bad usage; 130 interrupted.
+batch failed); 2 bad usage; 130 interrupted (Ctrl-C); 143 terminated (SIGTERM).
 """
 
 from . import convert, datasets, evaluation, generate, training  # noqa: F401 - they register the commands

@@ -1,32 +1,51 @@
 """The ``im2vec`` click group: library errors become one ``Error:`` line and exit 1.
 
 Exit codes: 0 success; 1 an error (bad input, bad model, failed write; some files of a
-batch failed); 2 bad usage; 130 interrupted.
+batch failed); 2 bad usage; 130 interrupted (Ctrl-C); 143 terminated (SIGTERM).
 """
 
 from __future__ import annotations
 
 import contextlib
 import gc
+import signal
 import traceback
 
 import click
 
 from .. import __version__
-from ..errors import Im2VecError
+from ..errors import Im2VecError, describe
 
-EXIT_HELP = "Exit codes: 0 ok, 1 error (or some files of a batch failed), 2 bad usage, 130 interrupted."
+EXIT_HELP = ("Exit codes: 0 ok, 1 error (or some files of a batch failed), 2 bad usage, 130 interrupted, "
+             "143 terminated.")
+
+
+class Terminated(BaseException):
+    """SIGTERM, raised in the main thread as Ctrl-C raises ``KeyboardInterrupt``: the work in
+    flight stops through every ``finally`` (worker processes ended, temp files removed)."""
+
+
+def _terminated(signum, frame):
+    raise Terminated
 
 
 class Im2VecGroup(click.Group):
-    """Turns library errors into one line on stderr and exit 1 (traceback with --debug)."""
+    """Turns library errors into one line on stderr and exit 1 (traceback with --debug);
+    SIGTERM and Ctrl-C end a command cleanly (exit 143 and 130)."""
 
     def invoke(self, ctx):
+        before = signal.signal(signal.SIGTERM, _terminated)
+        try:
+            return self._invoke(ctx)
+        finally:
+            signal.signal(signal.SIGTERM, before)
+
+    def _invoke(self, ctx):
         try:
             return super().invoke(ctx)
         except Im2VecError as exc:
             fail(ctx, str(exc))
-        except click.exceptions.Exit:
+        except (click.exceptions.Exit, click.ClickException, click.Abort):
             raise
         except OSError as exc:  # unwritable output, full disk: still one line
             name = getattr(exc, "filename", None)
@@ -34,6 +53,11 @@ class Im2VecGroup(click.Group):
         except KeyboardInterrupt:
             click.echo("Interrupted.", err=True)
             ctx.exit(130)
+        except Terminated:
+            click.echo("Terminated.", err=True)
+            ctx.exit(143)
+        except Exception as exc:  # noqa: BLE001 - never a traceback: a dependency's error, memory running out
+            fail(ctx, describe(exc))
 
 
 def fail(ctx: click.Context, message: str):

@@ -90,6 +90,8 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, toleranc
     where = dict(zip((item for item, _ in items), dests))
 
     def write(item, vec):
+        if isinstance(vec, Exception):  # this picture's pipeline failed: the others go on
+            return item, Im2VecError(f"{item}: {vec}")
         try:
             write_output(where[item], vec.to_svg(), parents=not single)
             return item, None
@@ -146,7 +148,7 @@ def _in_process(model, options, write):
         good, bad = _load(group)
         yield from bad
         if good:
-            for (item, _), vec in zip(good, api.vectorize([img for _, img in good], model, options)):
+            for (item, _), vec in zip(good, api.vectorize_each([img for _, img in good], model, options)):
                 yield write(item, vec)
 
     return work

@@ -6,6 +6,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Callable
 
+import numpy as np
 import torch
 
 from ..events import RefineStep
@@ -13,7 +14,7 @@ from ..infer import flat_result
 from ..model.vae import Im2Vec
 from ..options import PARTS
 from ..trace import clean_outlines, simplify
-from ..vector import VectorImage
+from ..vector import VectorImage, VectorShape
 from .settings import RefineSettings
 from .stages import Refinement
 
@@ -83,6 +84,8 @@ def refine_batch(
     for im in images:
         if im.dim() != 3 or im.shape[0] != 3:
             raise ValueError(f"image must be (3, H, W), got {tuple(im.shape)}")
+    sizes = [tuple(im.shape[1:]) for im in images]
+    images = [_workable(im) for im in images]
     out: list = [None] * len(images)
     by_size: dict[tuple[int, int], list[int]] = {}
     for i, im in enumerate(images):
@@ -112,7 +115,31 @@ def refine_batch(
     finally:
         for p, r in zip(model.parameters(), req):
             p.requires_grad_(r)
-    return out
+    return [(_rescaled(v, size), info) for (v, info), size in zip(out, sizes)]
+
+
+MAX_WORK_PIXELS = 2048 * 2048  # a larger picture is vectorized at an area-averaged copy this large, then
+# scaled back: tracing costs memory and time by the pixel (a 64 MP picture: 7.5 GB), and 2048 px resolve
+# any outline a designer keeps
+
+
+def _workable(image: torch.Tensor) -> torch.Tensor:
+    """``image (3, H, W)``, or its area-averaged copy of at most ``MAX_WORK_PIXELS``."""
+    _, h, w = image.shape
+    if h * w <= MAX_WORK_PIXELS:
+        return image
+    f = (MAX_WORK_PIXELS / (h * w)) ** 0.5
+    size = (max(4, int(h * f)), max(4, int(w * f)))
+    return torch.nn.functional.interpolate(image[None].float(), size=size, mode="area")[0]
+
+
+def _rescaled(vec: VectorImage, size: tuple[int, int]) -> VectorImage:
+    """``vec`` in the pixel frame of a picture of ``size (H, W)``."""
+    h, w = size
+    if (vec.width, vec.height) == (w, h):
+        return vec
+    f = np.array([w / vec.width, h / vec.height])
+    return VectorImage(w, h, [VectorShape([c * f for c in sh.contours], sh.color, sh.fill_rule) for sh in vec.shapes])
 
 
 def _model_paths(run: Refinement, index: list[int], segments, quality, max_paths, outline: bool = False

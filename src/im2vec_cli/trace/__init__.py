@@ -3,8 +3,10 @@ clean (united, corrected, untangled) and polished through the renderer.
 
 The stage list is ``pipeline.clean_outlines``; its parts, bottom up:
 
+- ``palette``: a multi-colour picture's colours and each pixel's label (a hard-edged
+  picture's exact colours, else a quantised palette, specks absorbed);
 - ``regions``: the picture's flat-colour regions as polygons (two-tone: one sub-pixel level
-  set; multi-colour: a palette, stacked regions);
+  set; multi-colour: stacked regions; hard-edged: along the pixel edges), bounded in number;
 - ``fit``: rings to closed cubics within a tolerance, corners kept sharp (``Corners`` flags);
 - ``simplify``: fewer segments for the same outline (neighbours merged within a tolerance);
 - ``outline``: ``traced`` (the picture's regions fitted), ``redrawn`` (any vector image

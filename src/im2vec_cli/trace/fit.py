@@ -199,26 +199,48 @@ def fit_runs(runs: list[tuple[np.ndarray, np.ndarray, np.ndarray]], tol: float) 
             else:
                 fit.append((r, key, pts, t0, t1, depth))
         pending = []
-        if not fit:
-            break
-        size = max(len(f[2]) for f in fit)
-        pts = np.zeros((len(fit), size, 2))
-        mask = np.zeros((len(fit), size), dtype=bool)
-        u = np.zeros((len(fit), size))
-        for j, (_, _, p, _, _, _) in enumerate(fit):
-            seg = np.hypot(*np.diff(p, axis=0).T)
-            pts[j, : len(p)], mask[j, : len(p)] = p, True
-            u[j, 1 : len(p)] = np.cumsum(seg) / max(seg.sum(), 1e-12)  # chord-length parameters
-        ctrl, u = fit_cubics(pts, mask, u, np.stack([f[3] for f in fit]), np.stack([f[4] for f in fit]), 4)
-        for j, (r, key, p, t0, t1, depth) in enumerate(fit):
-            err = np.hypot(*(cubic_at(ctrl[j], u[j, : len(p)]) - p).T)
-            if err.max() <= tol or depth > MAX_DEPTH:
-                done[r].append((key, ctrl[j]))
-                continue
-            i = int(np.clip(np.argmax(err), 2, len(p) - 3))
-            tc = _unit(p[i + 2] - p[i - 2])  # the split is a smooth join
-            pending += [(r, key + (0,), p[: i + 1], t0, -tc, depth + 1), (r, key + (1,), p[i:], tc, t1, depth + 1)]
+        for block in _blocks(fit):
+            for (r, key, p, t0, t1, depth), ctrl, u in zip(block, *_fit_block(block)):
+                err = np.hypot(*(cubic_at(ctrl, u[: len(p)]) - p).T)
+                if err.max() <= tol or depth > MAX_DEPTH:
+                    done[r].append((key, ctrl))
+                    continue
+                i = int(np.clip(np.argmax(err), 2, len(p) - 3))
+                tc = _unit(p[i + 2] - p[i - 2])  # the split is a smooth join
+                pending += [(r, key + (0,), p[: i + 1], t0, -tc, depth + 1), (r, key + (1,), p[i:], tc, t1, depth + 1)]
     return [[c for _, c in sorted(d, key=lambda kc: kc[0])] for d in done]
+
+
+FIT_BLOCK = 1 << 21  # points in one ``fit_cubics`` batch (pieces x the longest piece): bounded memory
+
+
+def _blocks(fit: list[tuple]) -> list[list[tuple]]:
+    """The pieces to fit (``(run, key, pts, t0, t1, depth)``) in batches of at most ``FIT_BLOCK``
+    padded points: all at once when they fit, else by length."""
+    if not fit or len(fit) * max(len(f[2]) for f in fit) <= FIT_BLOCK:
+        return [fit] if fit else []
+    fit = sorted(fit, key=lambda f: len(f[2]))
+    out, cur = [], []
+    for f in fit:
+        if cur and (len(cur) + 1) * len(f[2]) > FIT_BLOCK:
+            out.append(cur)
+            cur = []
+        cur.append(f)
+    return out + [cur]
+
+
+def _fit_block(fit: list[tuple]) -> tuple[np.ndarray, np.ndarray]:
+    """``fit_cubics`` of pieces ``(run, key, pts, t0, t1, depth)`` padded to the longest:
+    control points ``(R, 4, 2)`` and parameters ``(R, L)``."""
+    size = max(len(f[2]) for f in fit)
+    pts = np.zeros((len(fit), size, 2))
+    mask = np.zeros((len(fit), size), dtype=bool)
+    u = np.zeros((len(fit), size))
+    for j, (_, _, p, _, _, _) in enumerate(fit):
+        seg = np.hypot(*np.diff(p, axis=0).T)
+        pts[j, : len(p)], mask[j, : len(p)] = p, True
+        u[j, 1 : len(p)] = np.cumsum(seg) / max(seg.sum(), 1e-12)  # chord-length parameters
+    return fit_cubics(pts, mask, u, np.stack([f[3] for f in fit]), np.stack([f[4] for f in fit]), 4)
 
 
 def fit_run(pts: np.ndarray, t0: np.ndarray, t1: np.ndarray, tol: float) -> list[np.ndarray]:

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..raster.bezier import line_controls
 from ..vector import VectorImage, VectorShape, fill_vector
 from .fit import Corners, fit_rings
 from .regions import background_color, level_polygons, trace, two_tone
@@ -42,11 +43,28 @@ def fitted(rings_by_shape: list[tuple[tuple, list[np.ndarray]]], width: float, h
 
 
 def traced(image: np.ndarray, tol: float, colors: int | None = None, max_paths: int | None = None
-           ) -> tuple[VectorImage, Corners]:
-    """The picture ``(H, W, 3)`` in [0, 1] traced and fitted (``regions.trace``, ``fit.fit_rings``)."""
+           ) -> tuple[VectorImage, Corners, bool]:
+    """The picture ``(H, W, 3)`` in [0, 1] traced and fitted (``regions.trace``, ``fit.fit_rings``),
+    and whether the result is exact: a hard-edged picture's regions along its pixel edges,
+    every side one straight segment, every corner sharp (nothing to fit or polish)."""
     h, w, _ = image.shape
     regions = trace(image, colors, max_paths)
-    return fitted([(r.color, r.polygons) for r in regions], w, h, tol)
+    if regions and all(r.exact for r in regions):
+        return straight([(r.color, r.polygons) for r in regions], w, h) + (True,)
+    return fitted([(r.color, r.polygons) for r in regions], w, h, tol) + (False,)
+
+
+def straight(rings_by_shape: list[tuple[tuple, list[np.ndarray]]], width: float, height: float
+             ) -> tuple[VectorImage, Corners]:
+    """``[(colour, rings)]`` back to front -> a nonzero ``VectorImage`` whose every side is one
+    straight cubic, every corner sharp."""
+    shapes, flags = [], []
+    for color, rings in rings_by_shape:
+        contours = [np.concatenate([np.stack([a, *line_controls(a, b)]) for a, b in zip(r, np.roll(r, -1, 0))])
+                    for r in rings]
+        shapes.append(VectorShape(contours, tuple(float(v) for v in color), "nonzero"))
+        flags.append([np.ones(len(r), dtype=bool) for r in rings])
+    return VectorImage(width, height, shapes), flags
 
 
 # --- the model's paths, redrawn clean ------------------------------------------------------------

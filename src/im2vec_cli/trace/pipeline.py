@@ -7,7 +7,8 @@ pipeline: segment -> fit -> composite -> optimise -> write):
 3. fit: the chosen start's rings fitted with cubics within ``tolerance`` px, corners kept sharp
    (``Start.outline``);
 4. ``polish``: points and colours through the differentiable renderer (the ``Polisher``:
-   refinement's optimiser), smooth joins kept smooth;
+   refinement's optimiser), smooth joins kept smooth; not an exact outline (a hard-edged
+   picture's pixel edges) nor one of more than ``polish_segments`` segments;
 5. ``split_and_polish``: segments along which the render is still wrong halved
    (``split_where_wrong``) and polished again, kept where nearer;
 6. ``finish``: crossings ``untangle``-d, written nonzero.
@@ -43,6 +44,8 @@ class OutlineSettings:
     split_error: float = 0.01  # segments along which the render is still this wrong (MSE) are halved (0: never)
     max_segments: int = 200  # per contour, splitting stops here
     model_start: bool = True  # a two-tone picture also starts from the model's paths
+    polish_segments: int = 4000  # an outline of more segments is not polished: each step would render them all,
+    # at the fit size (128 px) where a picture of that many is finer than a pixel; it is fitted within tolerance
 
 
 class Polisher(Protocol):
@@ -68,15 +71,16 @@ class Start:
     colors: int | None = None
     max_paths: int | None = None
 
-    def outline(self, tol: float) -> tuple[VectorImage, Corners]:
+    def outline(self, tol: float) -> tuple[VectorImage, Corners, bool]:
         """Fitted within ``tol`` px, even-odd: the contours of a clean shape do not overlap, so
         even-odd renders them as nonzero does, without the renderer's boundary search
-        (seconds on a picture of many regions). ``finish`` writes them nonzero."""
+        (seconds on a picture of many regions). ``finish`` writes them nonzero. The flag:
+        the outline is exact (``outline.traced``), not to be polished."""
         if self.paths is None:
-            vec, flags = traced(self.picture, tol, self.colors, self.max_paths)
+            vec, flags, exact = traced(self.picture, tol, self.colors, self.max_paths)
         else:
-            vec, flags = redrawn(self.paths, tol, self.picture)
-        return with_rule(vec, "evenodd"), flags
+            (vec, flags), exact = redrawn(self.paths, tol, self.picture), False
+        return with_rule(vec, "evenodd"), flags, exact
 
 
 def clean_outlines(images: list[torch.Tensor], polisher: Polisher, s: OutlineSettings = OutlineSettings(), *,
@@ -93,8 +97,9 @@ def clean_outlines(images: list[torch.Tensor], polisher: Polisher, s: OutlineSet
     starts, info = _starts(pictures, s, colors, max_paths, model_paths)
     chosen = choose(starts, polisher)
     made = [start.outline(s.tolerance) for start in chosen]
-    vecs, flags = [v for v, _ in made], [f for _, f in made]
-    todo = [i for i, v in enumerate(vecs) if v.shapes]  # an empty one has nothing to draw
+    vecs, flags = [v for v, _, _ in made], [f for _, f, _ in made]
+    todo = [i for i, (v, _, exact) in enumerate(made)  # an empty one has nothing to draw, an exact one nothing
+            if v.shapes and not exact and v.num_segments <= s.polish_segments]  # to fix
     vecs, loss = polish(polisher, vecs, flags, todo)
     if s.split_error > 0:
         vecs, loss = split_and_polish(polisher, images, vecs, flags, loss, s)
@@ -196,10 +201,10 @@ def split_where_wrong(vec: VectorImage, flags: Corners, image: torch.Tensor, s: 
 
 def finish(polisher: Polisher, i: int, vec: VectorImage, loss: float | None, info: dict, start: str
            ) -> tuple[VectorImage, dict]:
-    """Picture ``i``'s result written nonzero and untangled, with its summary (an empty one,
-    never polished, is judged as it is)."""
+    """Picture ``i``'s result written nonzero and untangled, with its summary (one never
+    polished, empty or exact, is judged as it is)."""
     if loss is None:
-        return vec, {**info, "loss_end": polisher.loss([vec], [i])[0], "start": start, "segments": 0}
+        loss = polisher.loss([vec], [i])[0]
     v = untangle(with_rule(vec, "nonzero"))
     return v, {**info, "loss_end": loss, "start": start, "segments": v.num_segments}
 

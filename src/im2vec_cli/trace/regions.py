@@ -30,8 +30,12 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from ..errors import TraceError
 from ..raster.bezier import polygon_area
+from .palette import _flat_pixels, hard_palette, quantize
 
+MAX_REGIONS = 10_000  # regions (or rings of a two-tone picture) traced at most: a few ms each...
+MAX_PIECES = 100_000  # ...and pieces at most when --max-paths keeps only the largest of them
 WHITE_TOL = 0.06  # a colour within this (max channel distance) of white is white
 TWO_TONE_TOL = 0.08  # pixels this far (RGB distance) from the background-ink line break two-tone...
 TWO_TONE_SHARE = 0.005  # ...when more than this share of the pixels do
@@ -40,17 +44,22 @@ TWO_TONE_SHARE = 0.005  # ...when more than this share of the pixels do
 @dataclass
 class Region:
     """One flat-colour region: ``polygons`` are closed ``(N, 2)`` pixel-frame rings (first
-    point not repeated), outer boundaries clockwise on screen and holes counter-clockwise."""
+    point not repeated), outer boundaries clockwise on screen and holes counter-clockwise.
+    ``exact``: the rings run along pixel edges and are the outline itself (straight sides,
+    nothing to fit)."""
 
     color: tuple[float, float, float]
     polygons: list[np.ndarray]
+    exact: bool = False
 
 
-def level_polygons(field: np.ndarray, level: float = 0.5, min_area: float = 0.5) -> list[np.ndarray]:
+def level_polygons(field: np.ndarray, level: float = 0.5, min_area: float = 0.5, max_rings: int | None = None
+                   ) -> list[np.ndarray]:
     """Closed rings around ``field >= level`` (``(H, W)``, values at pixel centres), sub-pixel.
 
     The field is padded with zeros, so regions touching the border close along it. Rings
-    enclosing less than ``min_area`` px^2 (specks, pin holes) are dropped.
+    enclosing less than ``min_area`` px^2 (specks, pin holes) are dropped. More than
+    ``MAX_REGIONS`` rings (``max_rings`` given: ``MAX_PIECES``) is a ``TraceError``.
     """
     import contourpy
 
@@ -58,8 +67,10 @@ def level_polygons(field: np.ndarray, level: float = 0.5, min_area: float = 0.5)
     padded = np.pad(np.asarray(field, dtype=np.float64), 1)
     gen = contourpy.contour_generator(np.arange(w + 2) - 0.5, np.arange(h + 2) - 0.5, padded,
                                       fill_type="OuterOffset", quad_as_tri=False)
+    polys, offsets_all = gen.filled(level, np.inf)
+    _check_pieces(sum(len(o) - 1 for o in offsets_all), "outlines", max_rings, lift=False)
     rings = []
-    for poly, offsets in zip(*gen.filled(level, np.inf)):
+    for poly, offsets in zip(polys, offsets_all):
         for a, b in zip(offsets[:-1], offsets[1:]):
             ring = np.clip(poly[a : b - 1], 0, [w, h])  # the last point repeats the first
             if len(ring) >= 3 and abs(float(polygon_area(torch.from_numpy(ring)))) >= min_area:
@@ -111,6 +122,9 @@ def trace(image: np.ndarray, colors: int | None = None, max_regions: int | None 
     """
     image = np.asarray(image, dtype=np.float64)
     bg = background_color(image)
+    hard = hard_palette(image) if colors is None else None
+    if hard is not None:
+        return _with_background(bg, _stacked_regions(image, *hard, max_regions, exact=True), image.shape, exact=True)
     tone = two_tone(image, bg) if colors in (None, 1) else None
     if tone is None and colors == 1:
         ink, t = _ink_line(image, bg, 0.8)
@@ -122,166 +136,120 @@ def trace(image: np.ndarray, colors: int | None = None, max_regions: int | None 
     return _with_background(bg, _stacked_regions(image, palette, labels, max_regions), image.shape)
 
 
-def _with_background(bg: np.ndarray, regions: list[Region], shape) -> list[Region]:
+def _with_background(bg: np.ndarray, regions: list[Region], shape, exact: bool = False) -> list[Region]:
     regions = [r for r in regions if r.polygons]
     if (1 - bg).max() <= WHITE_TOL:
         return regions
     h, w = shape[:2]
     canvas = np.array([[0, 0], [w, 0], [w, h], [0, h]], dtype=np.float64)
-    return [Region(tuple(bg.tolist()), [canvas])] + regions
+    return [Region(tuple(bg.tolist()), [canvas], exact)] + regions
 
 
-# --- multi-colour pictures ---------------------------------------------------------------------
+def pixel_polygons(mask: np.ndarray) -> list[np.ndarray]:
+    """Closed rings ``(N, 2)`` along the pixel edges around ``mask (H, W)``: its exact outline
+    (the union of its pixels' squares, Skia's path ops), corners only where the outline turns,
+    outer boundaries clockwise on screen and holes counter-clockwise."""
+    import pathops
+
+    from ..vector import skia
+
+    pad = np.zeros((mask.shape[0], mask.shape[1] + 2), dtype=np.int8)
+    pad[:, 1:-1] = mask
+    ys, xs = np.nonzero(np.diff(pad, axis=1))  # each row's runs: starts, then ends, in order
+    path = pathops.Path()
+    for y, x0, x1 in zip(ys[0::2].tolist(), xs[0::2].tolist(), xs[1::2].tolist()):
+        path.moveTo(x0, y)
+        path.lineTo(x1, y)
+        path.lineTo(x1, y + 1)
+        path.lineTo(x0, y + 1)
+        path.close()
+    rings = []
+    for c in skia.contours(pathops.simplify(path, fix_winding=True)):
+        ring = c[0::3]  # (N, 2): the anchors of straight sides
+        d0, d1 = ring - np.roll(ring, 1, 0), np.roll(ring, -1, 0) - ring
+        turn = d0[:, 0] * d1[:, 1] - d0[:, 1] * d1[:, 0]
+        ring = ring[turn != 0]  # points along a straight side are not corners
+        if len(ring) >= 3:
+            rings.append(ring)
+    if rings and float(polygon_area(torch.from_numpy(max(rings, key=lambda r: np.ptp(r, 0).prod())))) < 0:
+        rings = [r[::-1].copy() for r in rings]  # outer boundaries clockwise on screen
+    return rings
 
 
-def quantize(image: np.ndarray, colors: int | None, seed: int = 0, max_colors: int = 16,
-             flat_mse: float = 1.5e-3) -> tuple[np.ndarray, np.ndarray]:
-    """Palette ``(K, 3)`` and per-pixel labels ``(H, W)`` of a picture.
-
-    The palette is fitted (k-means) to the *flat* pixels, whose 3x3 neighbourhood has one
-    colour, so that anti-aliased edges do not get colours of their own; with ``colors=None``
-    ``K`` grows until the flat pixels' mean squared error is below ``flat_mse``. Edge pixels
-    take the nearest palette colour among those of the flat pixels within two pixels.
-    """
-    from scipy.cluster.vq import kmeans2
-
-    h, w, _ = image.shape
-    flat = _flat_pixels(image)
-    pool = image[flat] if flat.sum() >= 16 else image.reshape(-1, 3)
-    rng = np.random.default_rng(seed)
-    if len(pool) > 20000:
-        pool = pool[rng.choice(len(pool), 20000, replace=False)]
-    unique = np.unique(np.round(pool * 255), axis=0)
-    ks = [min(colors, len(unique))] if colors else range(1, min(max_colors, len(unique)) + 1)
-    for k in ks:
-        centres, lab = kmeans2(pool, k, minit="++", seed=rng, iter=20)
-        used = np.unique(lab)
-        centres = centres[used]
-        err = ((pool - centres[np.argmin(((pool[:, None] - centres[None]) ** 2).sum(-1), 1)]) ** 2).sum(-1).mean()
-        if err <= flat_mse:
-            break
-    if not colors:
-        centres = _thin_colors(image.reshape(-1, 3), centres, max_colors)
-    labels = _assign(image, centres, flat)
-    return np.clip(centres, 0, 1), _absorb_specks(labels, max(2, h * w // 2000))
+def _check_pieces(n: int, what: str, max_regions: int | None, lift: bool = True) -> None:
+    """``TraceError`` when a picture falls into more than ``MAX_REGIONS`` pieces (``n``; with
+    ``max_regions``, ``MAX_PIECES``): each costs milliseconds to trace, fit and polish, and
+    that many are noise or a photo's grain, nothing a designer would keep."""
+    limit = MAX_REGIONS if max_regions is None else MAX_PIECES
+    if n > limit:
+        hint = "; --max-paths N keeps the N largest" if lift and max_regions is None else ""
+        raise TraceError(f"the picture falls into {n:,} {what} (noise, or a photo's grain?), more than the "
+                         f"{limit:,} im2vec traces{hint}")
 
 
-def _assign(image: np.ndarray, palette: np.ndarray, flat: np.ndarray) -> np.ndarray:
-    """``(H, W)`` labels: each pixel explained as a mix of two palette colours found near it
-    (within two pixels: a flat pixel of that colour, or a pixel close to it), and given
-    the one it holds more of. An anti-aliased edge between yellow and black is then yellow
-    or black, never a red that happens to lie nearer the mix."""
-    from scipy.ndimage import maximum_filter
-
-    h, w, _ = image.shape
-    k = len(palette)
-    dist = np.linalg.norm(image[:, :, None] - palette, axis=-1)  # (H, W, K)
-    flat_lab = np.where(flat, np.argmin(dist, -1), -1)
-    support = (flat_lab[..., None] == np.arange(k)) | (dist < 0.15)  # flat pixels of it, or pixels close to it
-    near = np.stack([maximum_filter(support[..., i], size=5) for i in range(k)], -1)  # (H, W, K)
-    near[~near.any(-1)] = True
-    best = np.full((h, w), np.inf)
-    labels = np.zeros((h, w), dtype=np.int64)
-    for i, j, t, r in _mixes(image, palette):
-        r = r + 1e-6 * (i != j)  # ties: one colour
-        r[~(near[..., i] & near[..., j])] = np.inf
-        better = r < best
-        best[better] = r[better]
-        labels[better] = np.where(t[better] < 0.5, i, j)
-    return labels
+BOX_MARGIN = 6  # px around a piece in which its region is worked out: its edge field reaches 5 px
 
 
-def _mixes(pixels: np.ndarray, palette: np.ndarray):
-    """For every pair ``i <= j`` of palette colours: ``(i, j, t, r)``, each pixel's position ``t``
-    along the mix from colour ``i`` to colour ``j`` and its distance ``r`` from that mix."""
-    for i in range(len(palette)):
-        for j in range(i, len(palette)):
-            a, d = palette[i], palette[j] - palette[i]
-            t = np.clip((pixels - a) @ d / max(float(d @ d), 1e-12), 0, 1)
-            yield i, j, t, np.linalg.norm(pixels - a - t[..., None] * d, axis=-1)
+def _grown_box(box: tuple[slice, slice], margin: int, shape) -> tuple[slice, slice]:
+    ys, xs = box
+    return (slice(max(ys.start - margin, 0), min(ys.stop + margin, shape[0])),
+            slice(max(xs.start - margin, 0), min(xs.stop + margin, shape[1])))
 
 
-def _mix_distance(pixels: np.ndarray, palette: np.ndarray) -> np.ndarray:
-    """``(N,)`` distance of each pixel to the nearest mix of two palette colours (an edge pixel)."""
-    return np.min([r for _, _, _, r in _mixes(pixels, palette)], axis=0)
+def _pieces(palette: np.ndarray, labels: np.ndarray, max_regions: int | None
+            ) -> list[tuple[int, int, tuple, np.ndarray, np.ndarray]]:
+    """Connected pieces of each colour but the white around the picture: ``(enclosed area,
+    colour, box, mask, filled)``, the masks within the piece's box (``BOX_MARGIN`` px wider)."""
+    from scipy.ndimage import binary_fill_holes, find_objects, label
 
-
-def _thin_colors(pixels: np.ndarray, palette: np.ndarray, max_colors: int, tol: float = 0.12) -> np.ndarray:
-    """Add the colours of thin features (lines, dots: no flat pixel of their own) to ``palette``:
-    while more than 0.2% of the pixels are no mix of two palette colours, the farthest tenth
-    of them gives one more colour."""
-    for _ in range(max_colors - len(palette)):
-        off = _mix_distance(pixels, palette)
-        odd = off > tol
-        if odd.sum() < max(3, 0.002 * len(pixels)):
-            break
-        far = pixels[odd][np.argsort(-off[odd])[: max(1, odd.sum() // 10)]]
-        palette = np.vstack([palette, far.mean(0)])
-    return palette
-
-
-def _flat_pixels(image: np.ndarray) -> np.ndarray:
-    """``(H, W)`` bool: pixels whose 8 neighbours are within 0.06 of them in every channel."""
-    pad = np.pad(image, ((1, 1), (1, 1), (0, 0)), mode="edge")
-    h, w, _ = image.shape
-    worst = np.zeros((h, w))
-    for dy in (0, 1, 2):
-        for dx in (0, 1, 2):
-            worst = np.maximum(worst, np.abs(pad[dy : dy + h, dx : dx + w] - image).max(-1))
-    return worst <= 0.06
-
-
-def _absorb_specks(labels: np.ndarray, min_px: int) -> np.ndarray:
-    """Connected pieces smaller than ``min_px`` pixels take the commonest label around them."""
-    from scipy.ndimage import binary_dilation, label
-
-    labels = labels.copy()
-    for k in np.unique(labels):
-        pieces, n = label(labels == k)
-        sizes = np.bincount(pieces.ravel())
-        for p in np.nonzero(sizes[1:] < min_px)[0] + 1:
-            piece = pieces == p
-            ring = binary_dilation(piece) & ~piece
-            around = labels[ring]
-            around = around[around != k]
-            if len(around):
-                labels[piece] = np.bincount(around).argmax()
-    return labels
-
-
-def _stacked_regions(image: np.ndarray, palette: np.ndarray, labels: np.ndarray, max_regions: int | None) -> list[Region]:
-    """Connected pieces of each colour, stacked largest (by enclosed area) at the back, each
-    extended under the pieces above it; neighbouring pieces of one colour share a region."""
-    from scipy.ndimage import binary_dilation, binary_fill_holes, label
-
-    pieces = []  # (enclosed area, colour index, mask)
-    for k in range(len(palette)):
-        lab, n = label(labels == k, structure=np.ones((3, 3)))
-        for p in range(1, n + 1):
-            mask = lab == p
-            filled = binary_fill_holes(mask)
-            if k == _white(palette) and _touches_border(mask):
+    out = []
+    labelled = [label(labels == k, structure=np.ones((3, 3))) for k in range(len(palette))]
+    _check_pieces(sum(n for _, n in labelled), f"pieces of {len(palette)} colours", max_regions)
+    for k, (lab, _) in enumerate(labelled):
+        for p, box in enumerate(find_objects(lab), 1):
+            if box is None:
+                continue
+            box = _grown_box(box, BOX_MARGIN, labels.shape)
+            mask = lab[box] == p
+            if k == _white(palette) and _touches_border(mask, box, labels.shape):
                 continue  # the background: the canvas shows it
-            pieces.append((int(filled.sum()), k, mask, filled))
-    pieces.sort(key=lambda t: -t[0])
+            filled = binary_fill_holes(mask)
+            out.append((int(filled.sum()), k, box, mask, filled))
+    return out
+
+
+def _stacked_regions(image: np.ndarray, palette: np.ndarray, labels: np.ndarray, max_regions: int | None,
+                     exact: bool = False) -> list[Region]:
+    """Connected pieces of each colour, stacked largest (by enclosed area) at the back, each
+    extended under the pieces above it; neighbouring pieces of one colour share a region.
+    Each piece is worked out within its box. ``exact``: outlines along the pixel edges
+    (``pixel_polygons``), else the sub-pixel 0.5 level of each piece's edge field."""
+    from scipy.ndimage import binary_dilation
+
+    pieces = sorted(_pieces(palette, labels, max_regions), key=lambda t: -t[0])
     if max_regions is not None:
         pieces = pieces[:max_regions]
     above = np.zeros(labels.shape, dtype=bool)
     extended = []
-    for _, k, mask, filled in reversed(pieces):  # front to back: `above` is what covers this piece
-        grown = mask | (filled & above) | (binary_dilation(mask) & above)
-        extended.append((k, grown, _edge_field(image, palette[k], grown, above)))
-        above |= mask
+    for _, k, box, mask, filled in reversed(pieces):  # front to back: `above` is what covers this piece
+        over = above[box]
+        grown = mask | (filled & over) | (binary_dilation(mask) & over)
+        field = None if exact else _edge_field(image[box], palette[k], grown, over)
+        extended.append((k, box, grown, field))
+        over |= mask
     regions: list[Region] = []
-    last = None
-    for k, grown, field in reversed(extended):  # back to front
-        rings = level_polygons(field)
-        if regions and last is not None and last[0] == k and not (last[1] & grown).any():
+    owner = np.full(labels.shape, -1, dtype=np.int32)  # the region each pixel's grown piece went to
+    last_k = None
+    for k, box, grown, field in reversed(extended):  # back to front
+        y0, x0 = box[0].start, box[1].start
+        rings = [r + (x0, y0) for r in (pixel_polygons(grown) if exact else level_polygons(field))]
+        mine = owner[box]
+        if regions and last_k == k and not (mine[grown] == len(regions) - 1).any():
             regions[-1].polygons.extend(rings)  # the same colour, not overlapping: one shape
-            last = (k, last[1] | grown)
         else:
-            regions.append(Region(tuple(palette[k].tolist()), rings))
-            last = (k, grown)
+            regions.append(Region(tuple(palette[k].tolist()), rings, exact))
+            last_k = k
+        mine[grown] = len(regions) - 1
     return regions
 
 
@@ -313,5 +281,8 @@ def _white(palette: np.ndarray) -> int:
     return int(np.argmin(gap)) if gap.min() <= WHITE_TOL else -1
 
 
-def _touches_border(mask: np.ndarray) -> bool:
-    return bool(mask[0].any() or mask[-1].any() or mask[:, 0].any() or mask[:, -1].any())
+def _touches_border(mask: np.ndarray, box: tuple[slice, slice], shape) -> bool:
+    """Whether ``mask`` (within ``box`` of a picture of ``shape``) touches the picture's border."""
+    ys, xs = box
+    return bool((ys.start == 0 and mask[0].any()) or (ys.stop == shape[0] and mask[-1].any())
+                or (xs.start == 0 and mask[:, 0].any()) or (xs.stop == shape[1] and mask[:, -1].any()))

@@ -18,22 +18,38 @@ def untangle(vec: VectorImage, merge_tol: float = 0.25) -> VectorImage:
     loop a fraction of a pixel wide) replaced by the exact outline of what it fills under its
     rule (Skia's path ops: ``skia-pathops``), so no pin hole or sliver is left at any zoom;
     the segments path ops split are merged again within ``merge_tol`` px where that crosses
-    nothing. Shapes without crossings are kept as they are."""
-    import pathops
-
+    nothing. Shapes without crossings are kept as they are, and so is a shape that Skia's path
+    ops fail on (rare: nearly coincident curves), with its coordinates snapped and without."""
     shapes = []
     for sh in vec.shapes:
         if not crosses(sh.contours):  # keep our cubics and start points
             shapes.append(sh)
             continue
-        path = skia.to_path([skia.contour_chain(c) for c in sh.contours], sh.fill_rule)
-        clean = skia.contours(pathops.simplify(path, fix_winding=True, keep_starting_points=True))
+        clean = _outline(sh)
+        if clean is None:  # Skia could not resolve it: keep the shape (its loop is a fraction of a pixel)
+            shapes.append(sh)
+            continue
         merged = [simplify_contour(c, merge_tol) if len(c) >= 9 else c for c in clean]  # path ops split curves
         shapes.append(VectorShape(clean if crosses(merged) else merged, sh.color, "nonzero"))
     return VectorImage(vec.width, vec.height, shapes)
 
 
-CROSS_BLOCK = 512  # edges tested at once by ``crosses`` (a few MB of pair arrays)
+def _outline(sh: VectorShape, snap: float = 1 / 256) -> list[np.ndarray] | None:
+    """The exact outline of what ``sh`` fills, as contours; ``None`` when path ops fail on it
+    as it is and with its points snapped to a ``snap`` px grid."""
+    import pathops
+
+    for grid in (None, snap):
+        cs = sh.contours if grid is None else [np.round(np.asarray(c) / grid) * grid for c in sh.contours]
+        path = skia.to_path([skia.contour_chain(c) for c in cs], sh.fill_rule)
+        try:
+            return skia.contours(pathops.simplify(path, fix_winding=True, keep_starting_points=True))
+        except pathops.PathOpsError:
+            continue
+    return None
+
+
+CROSS_BLOCK = 512  # edges tested at once by ``crosses``, against the edges in their box (bounded pair arrays)
 
 
 def crosses(contours: list[np.ndarray], samples: int = 16) -> bool:
@@ -54,16 +70,18 @@ def crosses(contours: list[np.ndarray], samples: int = 16) -> bool:
     def cross(u, v):
         return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
 
-    for lo in range(0, len(a), CROSS_BLOCK):  # blocks of edges i against all edges j: memory stays bounded
+    lo_xy, hi_xy = np.minimum(a, b), np.maximum(a, b)  # (E, 2) edge boxes
+    for lo in range(0, len(a), CROSS_BLOCK):  # blocks of edges i (neighbours along a contour: a small box)
         i = slice(lo, lo + CROSS_BLOCK)
-        r = a[None] - a[i, None]  # (B, E, 2): from edge i's start to edge j's start
-        den = cross(d[i, None], d[None])
+        near = np.nonzero(((lo_xy <= hi_xy[i].max(0)) & (hi_xy >= lo_xy[i].min(0))).all(1))[0]  # edges j in that box
+        r = a[near][None] - a[i, None]  # (B, J, 2): from edge i's start to edge j's start
+        den = cross(d[i, None], d[near][None])
         ok = np.abs(den) > 1e-12
-        t = np.where(ok, cross(r, d[None]) / np.where(ok, den, 1), -1)  # along edge i
+        t = np.where(ok, cross(r, d[near][None]) / np.where(ok, den, 1), -1)  # along edge i
         u = np.where(ok, cross(r, d[i, None]) / np.where(ok, den, 1), -1)  # along edge j
         hit = ok & (t > 1e-9) & (t < 1 - 1e-9) & (u > 1e-9) & (u < 1 - 1e-9)
-        same = owner[i, None] == owner[None]
-        gap = np.abs(index[i, None] - index[None])
+        same = owner[i, None] == owner[near][None]
+        gap = np.abs(index[i, None] - index[near][None])
         neighbours = same & ((gap <= 1) | (gap >= size[i, None] - 1))
         if (hit & ~neighbours).any():
             return True

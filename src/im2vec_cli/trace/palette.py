@@ -1,0 +1,187 @@
+"""The colours of a picture: its palette and each pixel's label.
+
+- ``hard_palette``: a hard-edged picture (pixel art, a mosaic) is its exact colours;
+- ``quantize``: any other multi-colour picture is quantised (k-means on its flat pixels, the
+  colours of thin features added, edge pixels given the colour they hold more of), and its
+  specks absorbed.
+
+Frame: ``(H, W, 3)`` arrays in [0, 1], labels ``(H, W)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+MAX_HARD_COLORS = 64  # a picture of at most this many exact colours (and at least 3)...
+MAX_HARD_SIDE = 512  # ...no larger than this is hard-edged: traced along its pixel edges
+MAX_SPECK = 24  # px: a piece smaller than 1/2000 of the picture, and than this, is a speck (absorbed)
+
+
+def hard_palette(image: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(palette (K, 3), labels (H, W))`` of a hard-edged picture (pixel art, a mosaic, a chart
+    without anti-aliasing): at most ``MAX_HARD_SIDE`` px a side, every pixel exactly one of 3 to
+    ``MAX_HARD_COLORS`` 8-bit colours, so that no pixel mixes two. Else ``None``."""
+    if max(image.shape[:2]) > MAX_HARD_SIDE:
+        return None
+    q = np.round(image * 255).astype(np.int64)
+    keys = ((q[..., 0] << 16) | (q[..., 1] << 8) | q[..., 2]).ravel()
+    if len(np.unique(keys[:: max(1, len(keys) // 4096)])) > MAX_HARD_COLORS:  # most pictures: a sample says no
+        return None
+    values, inverse = np.unique(keys, return_inverse=True)
+    if not 3 <= len(values) <= MAX_HARD_COLORS or _blends(q) > max(2, MAX_BLENDS * len(keys)):
+        return None
+    palette = np.stack([values >> 16, (values >> 8) & 255, values & 255], 1) / 255
+    return palette, inverse.reshape(image.shape[:2])
+
+
+MAX_BLENDS = 5e-4  # share of pixels that may look anti-aliased in a hard-edged picture
+
+
+def _blends(q: np.ndarray) -> int:
+    """How many pixels of ``q (H, W, 3)`` (8-bit) are a blend of their two neighbours on a row
+    or a column (strictly between two different colours, within 2 levels): anti-aliasing,
+    which a hard-edged picture has not."""
+    count = 0
+    for a, c, b in ((q[:, :-2], q[:, 1:-1], q[:, 2:]), (q[:-2], q[1:-1], q[2:])):
+        d, e = b - a, c - a  # (H', W', 3)
+        dd = (d * d).sum(-1)
+        t = (e * d).sum(-1) / np.maximum(dd, 1)
+        off = e - t[..., None] * d
+        between = (dd > 0) & (t > 0.02) & (t < 0.98) & ((off * off).sum(-1) <= 4)
+        count += int(between.sum())
+    return count
+
+
+def quantize(image: np.ndarray, colors: int | None, seed: int = 0, max_colors: int = 16,
+             flat_mse: float = 1.5e-3) -> tuple[np.ndarray, np.ndarray]:
+    """Palette ``(K, 3)`` and per-pixel labels ``(H, W)`` of a picture.
+
+    The palette is fitted (k-means) to the *flat* pixels, whose 3x3 neighbourhood has one
+    colour, so that anti-aliased edges do not get colours of their own; with ``colors=None``
+    ``K`` grows until the flat pixels' mean squared error is below ``flat_mse``. Edge pixels
+    take the nearest palette colour among those of the flat pixels within two pixels.
+    """
+    from scipy.cluster.vq import kmeans2
+
+    h, w, _ = image.shape
+    flat = _flat_pixels(image)
+    pool = image[flat] if flat.sum() >= 16 else image.reshape(-1, 3)
+    rng = np.random.default_rng(seed)
+    if len(pool) > 20000:
+        pool = pool[rng.choice(len(pool), 20000, replace=False)]
+    unique = np.unique(np.round(pool * 255), axis=0)
+    ks = [min(colors, len(unique))] if colors else range(1, min(max_colors, len(unique)) + 1)
+    for k in ks:
+        centres, lab = kmeans2(pool, k, minit="++", seed=rng, iter=20)
+        used = np.unique(lab)
+        centres = centres[used]
+        err = ((pool - centres[np.argmin(((pool[:, None] - centres[None]) ** 2).sum(-1), 1)]) ** 2).sum(-1).mean()
+        if err <= flat_mse:
+            break
+    if not colors:
+        pixels = image.reshape(-1, 3)
+        if len(pixels) > THIN_SAMPLE:  # the colours of thin lines and dots show in a sample too
+            pixels = pixels[rng.choice(len(pixels), THIN_SAMPLE, replace=False)]
+        centres = _thin_colors(pixels, centres, max_colors)
+    labels = _assign(image, centres, flat)
+    return np.clip(centres, 0, 1), _absorb_specks(labels, max(2, min(h * w // 2000, MAX_SPECK)))
+
+
+THIN_SAMPLE = 262_144  # pixels in which ``_thin_colors`` looks for the colours of thin features
+
+
+def _assign(image: np.ndarray, palette: np.ndarray, flat: np.ndarray) -> np.ndarray:
+    """``(H, W)`` labels: each pixel explained as a mix of two palette colours found near it
+    (within two pixels: a flat pixel of that colour, or a pixel close to it), and given
+    the one it holds more of. An anti-aliased edge between yellow and black is then yellow
+    or black, never a red that happens to lie nearer the mix."""
+    from scipy.ndimage import maximum_filter
+
+    h, w, _ = image.shape
+    k = len(palette)
+    dist = np.stack([np.linalg.norm(image - c, axis=-1).astype(np.float32) for c in palette], -1)  # (H, W, K)
+    flat_lab = np.where(flat, np.argmin(dist, -1), -1)
+    support = (flat_lab[..., None] == np.arange(k)) | (dist < 0.15)  # flat pixels of it, or pixels close to it
+    near = np.stack([maximum_filter(support[..., i], size=5) for i in range(k)], -1)  # (H, W, K)
+    near[~near.any(-1)] = True
+    best = np.full((h, w), np.inf)
+    labels = np.zeros((h, w), dtype=np.int64)
+    for i, j, t, r in _mixes(image, palette):
+        r = r + 1e-6 * (i != j)  # ties: one colour
+        r[~(near[..., i] & near[..., j])] = np.inf
+        better = r < best
+        best[better] = r[better]
+        labels[better] = np.where(t[better] < 0.5, i, j)
+    return labels
+
+
+def _mixes(pixels: np.ndarray, palette: np.ndarray):
+    """For every pair ``i <= j`` of palette colours: ``(i, j, t, r)``, each pixel's position ``t``
+    along the mix from colour ``i`` to colour ``j`` and its distance ``r`` from that mix."""
+    for i in range(len(palette)):
+        for j in range(i, len(palette)):
+            a, d = palette[i], palette[j] - palette[i]
+            t = np.clip((pixels - a) @ d / max(float(d @ d), 1e-12), 0, 1)
+            yield i, j, t, np.linalg.norm(pixels - a - t[..., None] * d, axis=-1)
+
+
+def _mix_distance(pixels: np.ndarray, palette: np.ndarray) -> np.ndarray:
+    """``(N,)`` distance of each pixel to the nearest mix of two palette colours (an edge pixel)."""
+    return np.min([r for _, _, _, r in _mixes(pixels, palette)], axis=0)
+
+
+def _thin_colors(pixels: np.ndarray, palette: np.ndarray, max_colors: int, tol: float = 0.12) -> np.ndarray:
+    """Add the colours of thin features (lines, dots: no flat pixel of their own) to ``palette``:
+    while more than 0.2% of the pixels are no mix of two palette colours, the farthest tenth
+    of them gives one more colour."""
+    for _ in range(max_colors - len(palette)):
+        off = _mix_distance(pixels, palette)
+        odd = off > tol
+        if odd.sum() < max(3, 0.002 * len(pixels)):
+            break
+        far = pixels[odd][np.argsort(-off[odd])[: max(1, odd.sum() // 10)]]
+        palette = np.vstack([palette, far.mean(0)])
+    return palette
+
+
+def _flat_pixels(image: np.ndarray) -> np.ndarray:
+    """``(H, W)`` bool: pixels whose 8 neighbours are within 0.06 of them in every channel."""
+    pad = np.pad(image, ((1, 1), (1, 1), (0, 0)), mode="edge")
+    h, w, _ = image.shape
+    worst = np.zeros((h, w))
+    for dy in (0, 1, 2):
+        for dx in (0, 1, 2):
+            worst = np.maximum(worst, np.abs(pad[dy : dy + h, dx : dx + w] - image).max(-1))
+    return worst <= 0.06
+
+
+def _absorb_specks(labels: np.ndarray, min_px: int) -> np.ndarray:
+    """Connected pieces (4-connected) smaller than ``min_px`` pixels take the commonest label
+    of the pixels around them (their 4-neighbours of another colour). The specks of one colour
+    never touch each other, so all of them are absorbed at once, colour by colour."""
+    from scipy.ndimage import label
+
+    labels = labels.copy()
+    h, w = labels.shape
+    index = np.arange(h * w).reshape(h, w)
+    shifts = [(np.s_[1:, :], np.s_[:-1, :]), (np.s_[:-1, :], np.s_[1:, :]),
+              (np.s_[:, 1:], np.s_[:, :-1]), (np.s_[:, :-1], np.s_[:, 1:])]
+    for k in np.unique(labels):
+        pieces, n = label(labels == k)
+        small = np.bincount(pieces.ravel(), minlength=n + 1) < min_px
+        small[0] = False
+        if not small.any():
+            continue
+        pairs = []  # (speck, the flat index of a pixel around it)
+        for here, there in shifts:
+            p, q = pieces[here], labels[there]
+            m = small[p] & (q != k)
+            pairs.append(p[m].astype(np.int64) * (h * w) + index[there][m])
+        pairs = np.unique(np.concatenate(pairs))  # each pixel around a speck counted once
+        speck, around = pairs // (h * w), labels.ravel()[pairs % (h * w)]
+        votes = np.zeros((n + 1, int(labels.max()) + 1), dtype=np.int64)
+        np.add.at(votes, (speck, around), 1)
+        absorbed = small & (votes.max(1) > 0)
+        take = absorbed[pieces]
+        labels[take] = votes.argmax(1)[pieces[take]]
+    return labels
