@@ -114,7 +114,8 @@ class Measuring(Event, kind="measure"):
 
 
 class AuxStep(Event, kind="aux_step"):
-    """A step of the segment-count predictor: its fit on the training and held-out codes."""
+    """A step of the segment-count predictor (every 250 and the last): its fit, the log MSE of
+    the predicted loss(k) curves, on the training and on the held-out path codes."""
     step: int
     fit: float
     val_fit: float
