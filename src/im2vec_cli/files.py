@@ -196,6 +196,10 @@ def image_to_tensor(img: Image.Image) -> torch.Tensor:
         return g.unsqueeze(0).expand(3, -1, -1).contiguous()
     if img.mode in ("LAB", "HSV", "YCbCr"):
         img = img.convert("RGB")
+    if "A" not in img.getbands() and "transparency" not in img.info:
+        # opaque: 8-bit to float once (a 64 MP picture: 0.8 GB, not 3 GB of float temporaries)
+        rgb = torch.from_numpy(np.array(img.convert("RGB"))).permute(2, 0, 1).contiguous()  # (3, H, W) uint8
+        return rgb.float().div_(255)
     rgba = img.convert("RGBA")
     arr = torch.from_numpy(np.asarray(rgba, dtype=np.float32) / 255.0)  # (H, W, 4)
     rgb, a = arr[..., :3], arr[..., 3:]
@@ -272,7 +276,9 @@ def as_image(image) -> torch.Tensor:
     elif isinstance(image, torch.Tensor):
         if image.dim() != 3 or image.shape[0] != 3:
             raise ValueError(f"image tensor must be (3, H, W), got {tuple(image.shape)}")
-        out = image.detach().float().cpu().clamp(0, 1)
+        out = image.detach().float().cpu()
+        if out.numel() and (out.min() < 0 or out.max() > 1):  # a copy only where one is needed
+            out = out.clamp(0, 1)
     else:
         out = _array_to_tensor(image)
     if min(out.shape[1:]) < MIN_SIDE:
