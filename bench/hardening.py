@@ -143,7 +143,7 @@ def sigterm_case(d: Path) -> str:
     p = subprocess.Popen(EXE + ["vectorize", "glyphs", "-o", str(out), "--jobs", "2", "--model", "fonts"], cwd=d,
                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, preexec_fn=_cap)
     deadline = time.time() + 120
-    while time.time() < deadline and not (out.exists() and any(out.iterdir())):
+    while time.time() < deadline and not (out.exists() and any(out.glob("g*.svg"))):
         time.sleep(0.2)
     p.send_signal(signal.SIGTERM)
     err = p.communicate(timeout=60)[1]

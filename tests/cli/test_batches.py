@@ -231,14 +231,14 @@ def test_sigterm_ends_a_worker_batch_cleanly(tmp_path, model_dir):
 
     d = tmp_path / "in"
     d.mkdir()
-    for i in range(200):
+    for i in range(400):  # far more than are done when the first are written
         glyph_like(32 + i % 3).save(d / f"g{i:03d}.png")
     out = tmp_path / "out"
     p = subprocess.Popen(EXE + ["vectorize", str(d), "-o", str(out), "--model", model_dir, "--jobs", "2"],
                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     deadline = time.time() + 120
-    while time.time() < deadline and not (out.exists() and any(out.iterdir())):
-        time.sleep(0.2)  # until the first SVGs are written
+    while time.time() < deadline and not (out.exists() and any(out.glob("g*.svg"))):
+        time.sleep(0.2)  # until the first SVGs are written (not only their temp files)
     p.send_signal(signal.SIGTERM)
     err = p.communicate(timeout=30)[1]
     assert p.returncode == 143, err
