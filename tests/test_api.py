@@ -171,3 +171,16 @@ def test_the_module_example_runs(monkeypatch):
     monkeypatch.chdir(Path(__file__).resolve().parents[1])  # the example's paths are the repository's
     result = doctest.testmod(api, verbose=False)
     assert result.attempted >= 8 and result.failed == 0
+
+
+def test_the_memory_budget_sets_the_work_size():
+    """``max_memory`` (bytes) sets how large a copy is worked on and how large a picture may be
+    read; the default (2 GiB) keeps the 2048² work size; a budget under 768 MiB is refused."""
+    from im2vec_cli.options import MAX_WORK_PIXELS, VectorizeOptions
+
+    default = VectorizeOptions()
+    assert default.work_pixels() == MAX_WORK_PIXELS and default.max_input_pixels() > 64_000_000
+    small = VectorizeOptions(max_memory=2**30)
+    assert small.work_pixels() == 2**29 // 256 and small.max_input_pixels() == 2**29 // 16
+    with pytest.raises(ValueError, match="max_memory"):
+        VectorizeOptions(max_memory=100 * 2**20)

@@ -87,6 +87,9 @@ def vectorize(images, model=DEFAULT_MODEL, options: VectorizeOptions | None = No
             image size compiles afresh (about 20 s per size on 2 CPU cores the first time on a
             machine, seconds from the cache after); on a CPU the eager kernels are nearly as
             fast (bench/folder.py), on a GPU the fused kernels pay for many pictures of one size.
+        max_memory: the memory budget in bytes (default 2 GiB): a picture larger than it allows
+            is vectorized at an area-averaged copy (``VectorizeOptions.work_pixels``, at most
+            2048^2) and scaled back; the CLI refuses to read a picture it cannot hold.
 
     Returns:
         One ``VectorImage`` per picture (a list for a list), in each picture's pixel frame.
@@ -105,7 +108,7 @@ def vectorize(images, model=DEFAULT_MODEL, options: VectorizeOptions | None = No
             settings = dataclasses.replace(settings, tolerance=float(o.tolerance))
         with compiling(o.compile):  # off by default: each new image size would compile afresh
             out = [v for v, _ in refinement.refine_batch(model, pictures, settings=settings, parts=o.parts,
-                                                         colors=o.colors, **kw)]
+                                                         colors=o.colors, max_work_pixels=o.work_pixels(), **kw)]
     else:
         out = [simplify(v, o.simplify_px or 0.0) for v in infer.vectorize(model, pictures, **kw)]
     return out[0] if one else out

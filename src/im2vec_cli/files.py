@@ -146,11 +146,11 @@ def _fsync_dir(directory: Path) -> None:
         os.close(fd)
 
 
-def open_image(data: bytes, name: str = "<image>") -> Image.Image:
+def open_image(data: bytes, name: str = "<image>", max_pixels: int = MAX_PIXELS) -> Image.Image:
     """Decode image bytes with Pillow, turning every failure into a one-line ``InputError``.
 
     Animated images (APNG, GIF, WebP) give their first frame; EXIF orientation is applied.
-    Images smaller than ``MIN_SIDE`` or larger than ``MAX_PIXELS`` are refused.
+    Images smaller than ``MIN_SIDE`` or larger than ``MAX_PIXELS`` (or ``max_pixels``) are refused.
     """
     if not data:
         raise InputError(f"{name}: empty file")
@@ -161,6 +161,9 @@ def open_image(data: bytes, name: str = "<image>") -> Image.Image:
             if img.width * img.height > MAX_PIXELS:
                 raise InputError(f"{name}: image too large ({img.width}x{img.height} pixels; "
                                  f"at most {MAX_PIXELS // 1_000_000} megapixels)")
+            if img.width * img.height > max_pixels:  # from the header, before decoding
+                raise InputError(f"{name}: image too large for the memory budget ({img.width}x{img.height} pixels; "
+                                 f"at most {max_pixels / 1e6:.1f} megapixels)")
             img.load()  # the first frame of an animation
             img = ImageOps.exif_transpose(img)
     except InputError:
@@ -235,10 +238,11 @@ def read_file(path: str | os.PathLike, limit: int = MAX_INPUT_BYTES) -> bytes:
         raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
 
 
-def load_image(path: str | os.PathLike, data: bytes | None = None) -> torch.Tensor:
-    """Read an image file (or given bytes) as ``(3, H, W)`` in [0, 1] over white."""
+def load_image(path: str | os.PathLike, data: bytes | None = None, max_pixels: int = MAX_PIXELS) -> torch.Tensor:
+    """Read an image file (or given bytes) as ``(3, H, W)`` in [0, 1] over white (at most
+    ``max_pixels``, checked before decoding)."""
     name = str(path)
-    img = open_image(read_file(path) if data is None else data, name)
+    img = open_image(read_file(path) if data is None else data, name, max_pixels)
     try:
         return image_to_tensor(img)
     except MemoryError:

@@ -20,6 +20,15 @@ FITS = ("resize", "pad")  # ModelConfig.fit: how an image smaller than the model
 GROWABLE = ("paths", "grouping")  # ModelConfig keys a fine-tune (`train --init`) may change
 
 
+MEMORY_DEFAULT = 2 * 2**30  # `vectorize --max-memory`: the budget of one vectorize process...
+MEMORY_MIN = 768 * 2**20  # ...at least this
+BASE_BYTES = 512 * 2**20  # the interpreter, torch and a model
+READ_BYTES_PER_PIXEL = 16  # a picture decoded (8-bit, twice while converting) and as float
+WORK_BYTES_PER_PIXEL = 256  # tracing and polishing, per pixel of the copy worked on (bench/hardening.py:
+# 1.3 GB peak for a 2048^2 gradient of 16 colours)
+MAX_WORK_PIXELS = 2048 * 2048  # the largest copy worked on, whatever the budget: 2048 px resolve any outline
+
+
 @dataclass(frozen=True)
 class VectorizeOptions:
     """How ``vectorize`` turns pictures into paths (``api.vectorize`` documents each field).
@@ -37,6 +46,7 @@ class VectorizeOptions:
     max_paths: int | None = None
     simplify_px: float | None = None
     compile: bool = False
+    max_memory: int | None = None  # bytes (None: MEMORY_DEFAULT)
 
     def __post_init__(self) -> None:
         if self.effort not in EFFORTS:
@@ -56,6 +66,18 @@ class VectorizeOptions:
             raise ValueError(f"quality must be a positive number, got {self.quality!r}")
         if self.simplify_px is not None and not (_number(self.simplify_px) and self.simplify_px >= 0):
             raise ValueError(f"simplify_px must be a number of pixels >= 0, got {self.simplify_px!r}")
+        if self.max_memory is not None and not (_integer(self.max_memory) and self.max_memory >= MEMORY_MIN):
+            raise ValueError(f"max_memory must be a number of bytes >= {MEMORY_MIN // 2**20} MiB, got {self.max_memory!r}")
+
+    def work_pixels(self) -> int:
+        """The most pixels of a picture worked on within the memory budget: a larger picture is
+        vectorized at an area-averaged copy this large, then scaled back."""
+        budget = (self.max_memory or MEMORY_DEFAULT) - BASE_BYTES
+        return min(MAX_WORK_PIXELS, budget // WORK_BYTES_PER_PIXEL)
+
+    def max_input_pixels(self) -> int:
+        """The most pixels a picture may have to be read within the memory budget."""
+        return ((self.max_memory or MEMORY_DEFAULT) - BASE_BYTES) // READ_BYTES_PER_PIXEL
 
 
 def _integer(x) -> bool:

@@ -26,6 +26,8 @@ CASES = {
     "1x1 image": (vectorize.in_one_pixel, "error"),
     "2x500 sliver": (vectorize.in_sliver, "error"),
     "20000x20000 image": (vectorize.in_20000_square, "error"),
+    "picture beyond --max-memory": (vectorize.in_beyond_max_memory, "error"),
+    "--max-memory 100M": (vectorize.in_max_memory_too_small, "usage"),
     "decompression bomb (PNG)": (vectorize.in_decompression_bomb, "error"),
     "decompression bomb (GIF screen)": (vectorize.in_gif_bomb, "error"),
     "truncated JPG": (vectorize.in_truncated_jpg, "error"),

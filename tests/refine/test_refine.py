@@ -170,18 +170,17 @@ def test_batched_refinement_matches_one_image_at_a_time(parts):
     assert len({v.num_segments for v in together}) > 2  # the images differ, so the check can fail
 
 
-def test_a_picture_beyond_the_work_size_is_vectorized_at_a_smaller_copy(tmp_path, monkeypatch):
-    """A picture of more than MAX_WORK_PIXELS is traced and polished at an area-averaged copy
+def test_a_picture_beyond_the_work_size_is_vectorized_at_a_smaller_copy(tmp_path):
+    """A picture of more than ``max_work_pixels`` is traced and polished at an area-averaged copy
     (bounded time and memory), and its SVG is in its own frame, drawing what it shows."""
-    import im2vec_cli.refine.batch as batch
+    from im2vec_cli.refine import refine_batch
 
     model = from_pretrained(make_tiny_model(tmp_path / "tiny"))
     img = torch.ones(3, 120, 160)
     img[:, 20:100, 30:70] = 0.0
     img[:, 40:60, 100:140] = 0.0
     full, _ = refine(model, img, settings=QUICK)
-    monkeypatch.setattr(batch, "MAX_WORK_PIXELS", 60 * 80)
-    small, _ = refine(model, img, settings=QUICK)
+    ((small, _),) = refine_batch(model, [img], settings=QUICK, max_work_pixels=60 * 80)
     check_svg(to_svg(small), 160, 120)
     assert (small.width, small.height) == (160, 120)
     assert _cairo_mse(small, img) < 0.01 and _cairo_mse(full, img) < 0.01

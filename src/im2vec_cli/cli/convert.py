@@ -10,7 +10,7 @@ from ..errors import Im2VecError
 from ..options import EFFORTS, PARTS, VectorizeOptions
 from .app import EXIT_HELP, cli, starting_up, warn
 from .batch import each, expand_inputs, plan_outputs, refuse_overwrite, run_batch
-from .options import Finite, load_model, model_options, nonempty, parse_segments
+from .options import BYTES, Finite, load_model, model_options, nonempty, parse_segments
 from .streams import load_input_image, read_input, write_output
 
 VECTORIZE_CHUNK = 32  # images per batch (one forward pass, one refinement batch): bounded memory, written as done
@@ -53,10 +53,13 @@ MAX_SVG_BYTES = 32 * 2**20  # `render` input: an SVG larger than this is refused
 @click.option("--compile/--no-compile", "compile_", default=False, show_default=True,
               help="Refine through torch.compile'd kernels: about 20 s to compile per image size the first time on a "
                    "machine (cached after); on 2 CPU cores it did not pay on a folder of 1000 glyphs (bench/folder.py).")
+@click.option("--max-memory", type=BYTES, default=None, metavar="SIZE",
+              help="Memory budget of the process (e.g. 1G, 800M): a picture too large to read within it is refused "
+                   "before decoding, and a large one is vectorized at a smaller copy (at most 2048x2048). [2G]")
 @model_options
 @click.pass_context
 def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, tolerance, colors, refine, effort, simplify_px,
-              jobs, compile_, model_name, device, seed):
+              jobs, compile_, max_memory, model_name, device, seed):
     """Vectorize images (PNG/JPG, any size) into SVGs of closed cubic paths.
 
     The SVG's viewBox is the input's pixel grid, so it overlays the input exactly.
@@ -80,7 +83,7 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, toleranc
     many = refine and len(items) > 1
     options = VectorizeOptions(refine=refine, effort=effort, segments=k, quality=quality, max_paths=max_paths,
                                simplify_px=simplify_px, parts=parts, tolerance=tolerance, colors=colors,
-                               compile=compile_)
+                               compile=compile_, max_memory=max_memory)
     if jobs is None:
         on_cpu = next(model.parameters()).device.type == "cpu"
         jobs = min(free, MAX_AUTO_JOBS) if many and on_cpu and len(items) >= JOBS_MIN_IMAGES else 1
@@ -129,12 +132,12 @@ def _ignored_options(ctx: click.Context) -> list[str]:
     return notes
 
 
-def _load(group):
+def _load(group, max_pixels: int | None = None):
     """-> the good ``(item, picture)`` of a group of inputs and the bad ``(item, error)``."""
     good, bad = [], []
     for item, _root in group:
         try:
-            good.append((item, load_input_image(item)))
+            good.append((item, load_input_image(item, max_pixels)))
         except Im2VecError as exc:
             bad.append((item, exc))
     return good, bad
@@ -145,7 +148,7 @@ def _in_process(model, options, write):
     from .. import api
 
     def work(group):
-        good, bad = _load(group)
+        good, bad = _load(group, options.max_input_pixels())
         yield from bad
         if good:
             for (item, _), vec in zip(good, api.vectorize_each([img for _, img in good], model, options)):
@@ -163,7 +166,7 @@ def _in_pool(model_name, jobs, threads, device, seed, options, write):
 
         def chunks():
             for start in range(0, len(group), VECTORIZE_CHUNK):
-                good, failed = _load(group[start : start + VECTORIZE_CHUNK])
+                good, failed = _load(group[start : start + VECTORIZE_CHUNK], options.max_input_pixels())
                 bad.extend(failed)
                 if good:  # as (H, W, 3) arrays: tensors would travel through shared memory and a file
                     names.append([item for item, _ in good])  # descriptor server that Ctrl-C interrupts

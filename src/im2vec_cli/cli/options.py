@@ -82,3 +82,31 @@ class Finite(click.FloatRange):
 
 
 SEED = click.IntRange(0, 2**32 - 1)  # every RNG takes it (NumPy's is 32-bit); larger seeds are usage errors
+
+
+class Bytes(click.ParamType):
+    """A size in bytes: ``800M``, ``1.5G``, ``2048K`` or a plain number of bytes, at least
+    ``options.MEMORY_MIN``."""
+
+    name = "size"
+    UNITS = {"": 1, "K": 2**10, "M": 2**20, "G": 2**30, "T": 2**40}
+
+    def convert(self, value, param, ctx):
+        import math
+
+        from ..options import MEMORY_MIN
+
+        if isinstance(value, int):
+            return value
+        text = str(value).strip().upper().removesuffix("B").removesuffix("I")
+        unit = text[-1:] if text[-1:] in "KMGT" else ""
+        try:
+            number = float(text[: len(text) - len(unit)])
+        except ValueError:
+            self.fail(f"{value!r} is not a size (e.g. 800M, 2G)", param, ctx)
+        if not math.isfinite(number) or number * self.UNITS[unit] < MEMORY_MIN:
+            self.fail(f"{value!r}: at least {MEMORY_MIN // 2**20}M", param, ctx)
+        return int(number * self.UNITS[unit])
+
+
+BYTES = Bytes()

@@ -27,13 +27,15 @@ def read_input(path: str, limit: int | None = None) -> bytes:
         raise Im2VecError(f"stdin: cannot read ({getattr(exc, 'strerror', None) or exc})") from None
 
 
-def load_input_image(item: str):
-    """An image file (or ``-``: stdin) as ``(3, H, W)`` in [0, 1] over white."""
-    from ..files import load_image
+def load_input_image(item: str, max_pixels: int | None = None):
+    """An image file (or ``-``: stdin) as ``(3, H, W)`` in [0, 1] over white (at most
+    ``max_pixels``, checked before decoding)."""
+    from ..files import MAX_PIXELS, load_image
 
+    most = MAX_PIXELS if max_pixels is None else max_pixels
     if item == "-":
-        return load_image("<stdin>", read_input("-"))
-    return load_image(item)
+        return load_image("<stdin>", read_input("-"), most)
+    return load_image(item, max_pixels=most)
 
 
 def write_stdout(raw: bytes) -> None:

@@ -12,7 +12,7 @@ import torch
 from ..events import RefineStep
 from ..infer import flat_result
 from ..model.vae import Im2Vec
-from ..options import PARTS
+from ..options import MAX_WORK_PIXELS, PARTS
 from ..trace import clean_outlines, simplify
 from ..vector import VectorImage, VectorShape
 from .settings import RefineSettings
@@ -73,19 +73,21 @@ def refine_batch(
     settings: RefineSettings = RefineSettings(),
     on_step: Callable[[RefineStep], None] | None = None,
     batch: int = REFINE_BATCH,
+    max_work_pixels: int = MAX_WORK_PIXELS,
 ) -> list[tuple[VectorImage, dict]]:
     """``refine`` of many images ``(3, H_i, W_i)``: images of one size are refined together,
     ``batch`` at a time, each step one render of them all; an image that has converged stops
     costing. Each image gets what ``refine`` alone gives it, up to float rounding (the
     batch sums per-image losses; Adam's state is per coordinate). Returns ``(vector image,
-    summary)`` per image, in order."""
+    summary)`` per image, in order. A picture of more than ``max_work_pixels`` is vectorized at
+    an area-averaged copy that large, its result scaled back to its own frame."""
     if parts not in PARTS:
         raise ValueError(f"parts must be one of {PARTS}, got {parts!r}")
     for im in images:
         if im.dim() != 3 or im.shape[0] != 3:
             raise ValueError(f"image must be (3, H, W), got {tuple(im.shape)}")
     sizes = [tuple(im.shape[1:]) for im in images]
-    images = [_workable(im) for im in images]
+    images = [_workable(im, max_work_pixels) for im in images]
     out: list = [None] * len(images)
     by_size: dict[tuple[int, int], list[int]] = {}
     for i, im in enumerate(images):
@@ -118,17 +120,13 @@ def refine_batch(
     return [(_rescaled(v, size), info) for (v, info), size in zip(out, sizes)]
 
 
-MAX_WORK_PIXELS = 2048 * 2048  # a larger picture is vectorized at an area-averaged copy this large, then
-# scaled back: tracing costs memory and time by the pixel (a 64 MP picture: 7.5 GB), and 2048 px resolve
-# any outline a designer keeps
-
-
-def _workable(image: torch.Tensor) -> torch.Tensor:
-    """``image (3, H, W)``, or its area-averaged copy of at most ``MAX_WORK_PIXELS``."""
+def _workable(image: torch.Tensor, most: int) -> torch.Tensor:
+    """``image (3, H, W)``, or its area-averaged copy of at most ``most`` pixels: tracing costs
+    memory and time by the pixel (a 64 MP picture: 7.5 GB)."""
     _, h, w = image.shape
-    if h * w <= MAX_WORK_PIXELS:
+    if h * w <= most:
         return image
-    f = (MAX_WORK_PIXELS / (h * w)) ** 0.5
+    f = (most / (h * w)) ** 0.5
     size = (max(4, int(h * f)), max(4, int(w * f)))
     return torch.nn.functional.interpolate(image[None].float(), size=size, mode="area")[0]
 

@@ -68,6 +68,16 @@ def in_20000_square(d, m):
     return ["vectorize", str(d / "x.png"), "-o", str(d / "out.svg")], None
 
 
+def in_beyond_max_memory(d, m):
+    # 6000 x 6000 (36 MP) needs about 1.1 GB to read; an 800 MiB budget holds 18.9 MP
+    (d / "x.png").write_bytes(png_bytes(6000, 6000, b"\xff" * 750))
+    return ["vectorize", str(d / "x.png"), "-o", str(d / "out.svg"), "--max-memory", "800M"], None
+
+
+def in_max_memory_too_small(d, m):
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--max-memory", "100M"], None
+
+
 def in_decompression_bomb(d, m):
     # a header claiming 100000 x 100000 pixels in front of a few bytes of data
     ihdr = (100000).to_bytes(4, "big") * 2 + bytes([8, 0, 0, 0, 0])
