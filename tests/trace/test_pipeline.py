@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import torch
 from click.testing import CliRunner
 from scipy.ndimage import label
 
@@ -174,7 +173,8 @@ def test_split_where_wrong_splits_only_where_the_render_is_wrong():
     bumped[0:2, 0] += 6  # the first anchor (at 0 degrees, the right) and its handle pushed out
     bumped[-1, 0] += 6
     truth = VectorImage(w, h, [VectorShape([bumped], (0.0, 0.0, 0.0), "nonzero")])
-    target = torch.from_numpy(rasterize_svg(to_svg(truth, 4), w, h)).permute(2, 0, 1).float()
+    # (H, W, 3): float32 pixels in float64, as clean_outlines holds its pictures
+    target = rasterize_svg(to_svg(truth, 4), w, h).astype(np.float32).astype(np.float64)
     plain = VectorImage(w, h, [VectorShape([_ring(24, 24, 14)], (0.0, 0.0, 0.0), "nonzero")])
     flags = [[np.zeros(8, dtype=bool)]]
     vec, new_flags, count = split_where_wrong(plain, flags, target, OutlineSettings())

@@ -102,7 +102,7 @@ def clean_outlines(images: list[torch.Tensor], polisher: Polisher, s: OutlineSet
             if v.shapes and not exact and v.num_segments <= s.polish_segments]  # to fix
     vecs, loss = polish(polisher, vecs, flags, todo)
     if s.split_error > 0:
-        vecs, loss = split_and_polish(polisher, images, vecs, flags, loss, s)
+        vecs, loss = split_and_polish(polisher, pictures, vecs, flags, loss, s)
     return [finish(polisher, i, vecs[i], loss.get(i), info[i], chosen[i].name) for i in range(len(vecs))]
 
 
@@ -150,13 +150,13 @@ def polish(polisher: Polisher, vecs: list[VectorImage], flags: list[Corners], to
     return out, dict(zip(todo, polisher.loss(got, todo)))
 
 
-def split_and_polish(polisher: Polisher, images: list[torch.Tensor], vecs: list[VectorImage], flags: list[Corners],
+def split_and_polish(polisher: Polisher, pictures: list[np.ndarray], vecs: list[VectorImage], flags: list[Corners],
                      loss: dict[int, float], s: OutlineSettings) -> tuple[list[VectorImage], dict[int, float]]:
     """Each polished picture's segments that are still wrong halved and polished again; the
     new result kept where its loss is lower."""
     split = {}
     for i in loss:
-        v, f, count = split_where_wrong(vecs[i], flags[i], images[i], s)
+        v, f, count = split_where_wrong(vecs[i], flags[i], pictures[i], s)
         if count:
             split[i] = (v, f)
     again = list(split)
@@ -169,17 +169,17 @@ def split_and_polish(polisher: Polisher, images: list[torch.Tensor], vecs: list[
     return out, loss
 
 
-def split_where_wrong(vec: VectorImage, flags: Corners, image: torch.Tensor, s: OutlineSettings
+def split_where_wrong(vec: VectorImage, flags: Corners, picture: np.ndarray, s: OutlineSettings
                       ) -> tuple[VectorImage, Corners, int]:
-    """Halve every segment along which the render still differs from ``image (3, H, W)`` by
+    """Halve every segment along which the render still differs from ``picture (H, W, 3)`` by
     more than ``s.split_error`` (mean squared, over the pixels the segment passes and their
     neighbours, cairo at the input's size; scaled by ``(tolerance / 0.5)^2``): the polish
     then has the points it lacked there.
 
     Returns the new image, its corner flags and the segments split."""
-    _, h, w = image.shape
+    h, w, _ = picture.shape
     got = fill_vector(vec, w, h)  # (H, W, 3): cairo, as rasterize_svg(vec.to_svg(3)) draws it
-    err = _box3(((got - image.permute(1, 2, 0).double().cpu().numpy()) ** 2).sum(-1))
+    err = _box3(((got - picture) ** 2).sum(-1))
     limit = s.split_error * (s.tolerance / 0.5) ** 2  # a looser tolerance splits less
     shapes, out_flags, count = [], [], 0
     for sh, fl in zip(vec.shapes, flags):

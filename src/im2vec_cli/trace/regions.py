@@ -234,15 +234,13 @@ def _stacked_regions(image: np.ndarray, palette: np.ndarray, labels: np.ndarray,
     for _, k, box, mask, filled in reversed(pieces):  # front to back: `above` is what covers this piece
         over = above[box]
         grown = mask | (filled & over) | (binary_dilation(mask) & over)
-        field = None if exact else _edge_field(image[box], palette[k], grown, over)
-        extended.append((k, box, grown, field))
+        rings = pixel_polygons(grown) if exact else level_polygons(_edge_field(image[box], palette[k], grown, over))
+        extended.append((k, box, grown, [r + (box[1].start, box[0].start) for r in rings]))
         over |= mask
     regions: list[Region] = []
     owner = np.full(labels.shape, -1, dtype=np.int32)  # the region each pixel's grown piece went to
     last_k = None
-    for k, box, grown, field in reversed(extended):  # back to front
-        y0, x0 = box[0].start, box[1].start
-        rings = [r + (x0, y0) for r in (pixel_polygons(grown) if exact else level_polygons(field))]
+    for k, box, grown, rings in reversed(extended):  # back to front
         mine = owner[box]
         if regions and last_k == k and not (mine[grown] == len(regions) - 1).any():
             regions[-1].polygons.extend(rings)  # the same colour, not overlapping: one shape
