@@ -65,31 +65,8 @@ def vectorize(images, model=DEFAULT_MODEL, options: VectorizeOptions | None = No
     Args:
         images: a picture, or a list of pictures (any size each).
         model: a model from ``load_model``, or its name.
-        options: a ``VectorizeOptions`` (default: its defaults); ``fields`` override any of
-            its fields by name (``vectorize(img, m, parts="model")``). The fields:
-        refine: fit the paths to each picture through the renderer (``refine.refine``);
-            ``False`` gives the model's guess alone, in one batch.
-        effort: with ``refine``, ``"fast"`` or ``"best"`` (``options.EFFORTS``).
-        parts: with ``refine``, ``"clean"`` (each colour one path of non-overlapping outer
-            contours and holes, from the model's paths or the picture's own regions, whichever
-            fits better) or ``"model"`` (the model's own paths, the same for every picture of
-            its class).
-        tolerance: with ``parts="clean"``, how far (input pixels) the cubics may stray from the
-            traced outline before another segment is added (default 0.5); larger is more compact.
-        colors: with ``parts="clean"``, the palette size of a multi-colour picture (default:
-            as many as its flat areas need, at most 16; 1: two-tone).
-        segments: cubic segments per path (default: the model's), or ``"auto"`` (the model's
-            segment predictor chooses per path at ``quality``).
-        max_paths: keep at most this many paths (the largest).
-        simplify_px: merge segments while the outline moves less than this many input pixels
-            (default 0.25 with ``refine``, else 0).
-        compile: run the renderer's kernels through ``torch.compile`` while refining. Each new
-            image size compiles afresh (about 20 s per size on 2 CPU cores the first time on a
-            machine, seconds from the cache after); on a CPU the eager kernels are nearly as
-            fast (bench/folder.py), on a GPU the fused kernels pay for many pictures of one size.
-        max_memory: the memory budget in bytes (default 2 GiB): a picture larger than it allows
-            is vectorized at an area-averaged copy (``VectorizeOptions.work_pixels``, at most
-            2048^2) and scaled back; the CLI refuses to read a picture it cannot hold.
+        options: a ``VectorizeOptions`` (default: its defaults; its docstring describes each
+            field); ``fields`` override any of them by name (``vectorize(img, m, parts="model")``).
 
     Returns:
         One ``VectorImage`` per picture (a list for a list), in each picture's pixel frame.
@@ -99,19 +76,32 @@ def vectorize(images, model=DEFAULT_MODEL, options: VectorizeOptions | None = No
     one = not isinstance(images, (list, tuple))
     pictures = [as_image(x) for x in ([images] if one else images)]
     check_segments(model, o.segments)
-    kw = {"segments": o.segments, "quality": o.quality, "max_paths": o.max_paths}
     if o.refine:
-        settings = refinement.EFFORTS[o.effort]
-        if o.simplify_px is not None:
-            settings = dataclasses.replace(settings, simplify_tol=o.simplify_px)
-        if o.tolerance is not None:
-            settings = dataclasses.replace(settings, tolerance=float(o.tolerance))
-        with compiling(o.compile):  # off by default: each new image size would compile afresh
-            out = [v for v, _ in refinement.refine_batch(model, pictures, settings=settings, parts=o.parts,
-                                                         colors=o.colors, max_work_pixels=o.work_pixels(), **kw)]
+        out = _refined(model, pictures, o)
     else:
+        kw = {"segments": o.segments, "quality": o.quality, "max_paths": o.max_paths}
         out = [simplify(v, o.simplify_px or 0.0) for v in infer.vectorize(model, pictures, **kw)]
     return out[0] if one else out
+
+
+def _refined(model, pictures: list[torch.Tensor], o: VectorizeOptions) -> list[VectorImage]:
+    """``vectorize`` with refinement: each result with its ``notes`` (``_notes``)."""
+    settings = refinement.EFFORTS[o.effort]
+    if o.simplify_px is not None:
+        settings = dataclasses.replace(settings, simplify_tol=o.simplify_px)
+    if o.tolerance is not None:
+        settings = dataclasses.replace(settings, tolerance=float(o.tolerance))
+    with compiling(o.compile):  # off by default: each new image size would compile afresh
+        got = refinement.refine_batch(model, pictures, settings=settings, parts=o.parts, colors=o.colors,
+                                      segments=o.segments, quality=o.quality, max_paths=o.max_paths,
+                                      max_work_pixels=o.work_pixels(), speckle=o.speckle,
+                                      preset=None if o.preset == "auto" else o.preset)
+    return [dataclasses.replace(v, notes=_notes(info)) for v, info in got]
+
+
+def _notes(info: dict) -> dict:
+    """What a result tells beside its paths: the kind of picture it was read as, and how."""
+    return {k: info[k] for k in ("kind", "reading", "start", "loss_end") if k in info}
 
 
 def vectorize_each(images: list, model=DEFAULT_MODEL, options: VectorizeOptions | None = None,

@@ -12,7 +12,8 @@ import numbers
 from dataclasses import dataclass
 
 PARTS = ("clean", "model")  # `vectorize --parts`: clean outlines (default) or the model's own paths
-EFFORTS = ("fast", "best")  # `vectorize --effort`: refine.EFFORTS holds the settings of each
+EFFORTS = ("draft", "fast", "best")  # `vectorize --effort`: refine.EFFORTS holds the settings of each
+PRESETS = ("auto", "scan", "logo", "line", "pixel", "photo")  # `vectorize --preset`: the kinds of trace.read
 PRIORS = ("auto", "fitted", "normal")  # `sample --prior`: auto is the fitted prior when the model has one
 GROUPINGS = ("evenodd", "nonzero", "layers")  # ModelConfig.grouping: how paths make shapes
 ARCHS = ("im2vec", "imagevae")  # ModelConfig.arch: the vector model, or the paper's raster baseline
@@ -26,12 +27,44 @@ BASE_BYTES = 512 * 2**20  # the interpreter, torch and a model
 READ_BYTES_PER_PIXEL = 16  # a picture decoded (8-bit, twice while converting) and as float
 WORK_BYTES_PER_PIXEL = 256  # tracing and polishing, per pixel of the copy worked on (bench/hardening.py:
 # 1.3 GB peak for a 2048^2 gradient of 16 colours)
+MAX_SPECKLE = 1000  # `vectorize --filter-speckle`: px a side at most
 MAX_WORK_PIXELS = 2048 * 2048  # the largest copy worked on, whatever the budget: 2048 px resolve any outline
 
 
 @dataclass(frozen=True)
 class VectorizeOptions:
-    """How ``vectorize`` turns pictures into paths (``api.vectorize`` documents each field).
+    """How ``vectorize`` (``api.vectorize``) turns pictures into paths.
+
+    refine: fit the paths to each picture through the renderer (``refine.refine``);
+        ``False`` gives the model's guess alone, in one batch.
+    effort: with ``refine``, ``"draft"`` (clean outlines traced and fitted, nothing
+        polished: the quickest), ``"fast"`` or ``"best"`` (``options.EFFORTS``).
+    preset: with ``parts="clean"``, what kind of picture it is (``options.PRESETS``:
+        ``"scan"``, ``"logo"``, ``"line"``, ``"pixel"``, ``"photo"``; ``"auto"``, the default:
+        the kind it looks like, ``trace.read``). The result's ``notes["kind"]`` says which.
+    speckle: with ``parts="clean"``, pieces and holes smaller than this many px a side are
+        dropped from scans and line art (default: 2 px, and 1 more per 256 px of the
+        picture's longer side).
+    parts: with ``refine``, ``"clean"`` (each colour one path of non-overlapping outer
+        contours and holes, from the model's paths or the picture's own regions, whichever
+        fits better) or ``"model"`` (the model's own paths, the same for every picture of
+        its class).
+    tolerance: with ``parts="clean"``, how far (input pixels) the cubics may stray from the
+        traced outline before another segment is added (default 0.5); larger is more compact.
+    colors: with ``parts="clean"``, the palette size of a multi-colour picture (default:
+        as many as its flat areas need, at most 16; 1: two-tone).
+    segments: cubic segments per path (default: the model's), or ``"auto"`` (the model's
+        segment predictor chooses per path at ``quality``).
+    max_paths: keep at most this many paths (the largest).
+    simplify_px: merge segments while the outline moves less than this many input pixels
+        (default 0.25 with ``refine``, else 0).
+    compile: run the renderer's kernels through ``torch.compile`` while refining. Each new
+        image size compiles afresh (about 20 s per size on 2 CPU cores the first time on a
+        machine, seconds from the cache after); on a CPU the eager kernels are nearly as
+        fast (bench/folder.py), on a GPU the fused kernels pay for many pictures of one size.
+    max_memory: the memory budget in bytes (default 2 GiB): a picture larger than it allows
+        is vectorized at an area-averaged copy (``VectorizeOptions.work_pixels``, at most
+        2048^2) and scaled back; the CLI refuses to read a picture it cannot hold.
 
     Raises ``ValueError`` (one line, naming the field) when made with a value out of range.
     """
@@ -47,10 +80,16 @@ class VectorizeOptions:
     simplify_px: float | None = None
     compile: bool = False
     max_memory: int | None = None  # bytes (None: MEMORY_DEFAULT)
+    preset: str = "auto"
+    speckle: int | None = None  # px (None: by the picture's size, trace.read)
 
     def __post_init__(self) -> None:
         if self.effort not in EFFORTS:
             raise ValueError(f"effort must be one of {list(EFFORTS)}, got {self.effort!r}")
+        if self.preset not in PRESETS:
+            raise ValueError(f"preset must be one of {list(PRESETS)}, got {self.preset!r}")
+        if self.speckle is not None and not (_integer(self.speckle) and 0 <= self.speckle <= MAX_SPECKLE):
+            raise ValueError(f"speckle must be an integer number of pixels in [0, {MAX_SPECKLE}], got {self.speckle!r}")
         if self.parts not in PARTS:
             raise ValueError(f"parts must be one of {list(PARTS)}, got {self.parts!r}")
         if self.tolerance is not None and not _positive(self.tolerance):

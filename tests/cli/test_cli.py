@@ -174,13 +174,14 @@ def test_vectorize_refine_flag(tmp_path, model_dir):
 def test_choice_lists_are_written_once_and_keep_torch_out_of_help():
     """The CLI's choices are options.py's lists (one definition), the pipelines use the same
     lists, and importing them with the CLI starts no torch (a real process: `--help`)."""
-    from im2vec_cli import config, infer, options, refine
+    from im2vec_cli import config, infer, options, refine, trace
     from im2vec_cli.cli import evaluation, generate, sample, training, vectorize
 
     def choices(command, name):
         return tuple(next(p for p in command.params if p.name == name).type.choices)
 
     assert tuple(refine.EFFORTS) == options.EFFORTS == choices(vectorize, "effort")
+    assert choices(vectorize, "preset") == options.PRESETS and trace.KINDS == options.PRESETS[1:]
     assert refine.PARTS is options.PARTS and choices(vectorize, "parts") == options.PARTS == choices(sample, "parts")
     assert infer.PRIORS is options.PRIORS and choices(sample, "prior") == options.PRIORS
     assert choices(evaluation.eval_cmd, "prior") == options.PRIORS == choices(generate.sample, "prior")
@@ -193,7 +194,8 @@ def test_choice_lists_are_written_once_and_keep_torch_out_of_help():
 
 @pytest.mark.parametrize("field, value", [("effort", "slow"), ("parts", "all"), ("tolerance", 0), ("colors", 65),
                                           ("max_paths", 0), ("segments", 0), ("quality", float("nan")),
-                                          ("simplify_px", -1), ("colors", True)])
+                                          ("simplify_px", -1), ("colors", True), ("preset", "poster"),
+                                          ("speckle", -1), ("speckle", 2.5), ("effort", "sketch")])
 def test_vectorize_options_are_checked_where_they_are_made(field, value):
     from im2vec_cli.options import VectorizeOptions
 
@@ -203,3 +205,15 @@ def test_vectorize_options_are_checked_where_they_are_made(field, value):
 
     with pytest.raises(ValueError, match=field):
         dataclasses.replace(VectorizeOptions(), **{field: value})
+
+
+def test_vectorize_verbose_says_what_each_picture_was_read_as(tmp_path, model_dir):
+    """-v: one line per picture on stderr, the kind chosen (pixel art here) and its figures."""
+    rng = np.random.default_rng(0)
+    sprite = rng.integers(0, 256, (5, 3), dtype=np.uint8)[rng.integers(0, 5, (8, 8))]
+    Image.fromarray(np.kron(sprite, np.ones((6, 6, 1), np.uint8))).save(tmp_path / "s.png")
+    res = CliRunner().invoke(cli, ["vectorize", str(tmp_path / "s.png"), "-o", str(tmp_path / "s.svg"), "-v",
+                                   "--model", model_dir])
+    assert res.exit_code == 0, res.output
+    assert res.stderr.strip().splitlines() == [f"{tmp_path / 's.png'}: pixel (block 6); 5 paths, "
+                                               f"{res.stderr.split('paths, ')[1].split(' ')[0]} segments"]

@@ -7,7 +7,7 @@ import collections
 import click
 
 from ..errors import Im2VecError
-from ..options import EFFORTS, PARTS, VectorizeOptions
+from ..options import EFFORTS, MAX_SPECKLE, PARTS, PRESETS, VectorizeOptions
 from .app import EXIT_HELP, cli, starting_up, warn
 from .batch import each, expand_inputs, plan_outputs, refuse_overwrite, run_batch
 from .options import BYTES, Finite, load_model, model_options, nonempty, parse_segments
@@ -42,8 +42,19 @@ MAX_SVG_BYTES = 32 * 2**20  # `render` input: an SVG larger than this is refused
               help="Fit the paths to each input by gradient descent through the renderer; several inputs are "
                    "refined in batches. --no-refine: the model's guess alone (milliseconds). [on]")
 @click.option("--effort", type=click.Choice(EFFORTS), default="fast", show_default=True,
-              help="With refinement: fast (about 0.25 s for one 64 px glyph on 2 CPU cores, 40 ms each in a folder "
-                   "of them) or best (about 1 s alone, half the pixel error).")
+              help="With refinement: draft (clean outlines traced and fitted, not polished: the quickest), fast "
+                   "(about 0.25 s for one 64 px glyph on 2 CPU cores, 40 ms each in a folder of them) or best "
+                   "(about 1 s alone, half the pixel error).")
+@click.option("--preset", type=click.Choice(PRESETS), default="auto", show_default=True,
+              help="With --parts clean: what kind of picture it is. scan (ink on paper, photographed or scanned: "
+                   "light flattened, noise smoothed, black ink made black), logo (flat colours), line (thin strokes), "
+                   "pixel (pixel art: exact colours and pixel edges), photo (posterised); auto: the kind it looks like "
+                   "(-v shows it).")
+@click.option("--filter-speckle", "speckle", type=click.IntRange(0, MAX_SPECKLE), default=None, metavar="PX",
+              help="With --parts clean: drop pieces and holes smaller than PX x PX pixels from scans and line art "
+                   "(0: keep all). [2, and 1 more per 256 px of the picture's longer side]")
+@click.option("-v", "--verbose", is_flag=True, help="Per picture a line on stderr: the kind it was read as, paths, "
+              "segments.")
 @click.option("--simplify", "simplify_px", type=Finite(0), default=None,
               help="Merge segments while the outline moves less than this many input pixels. [0.25 with --refine, else 0]")
 @click.option("--jobs", "-j", type=click.IntRange(1, 64), default=None,
@@ -58,8 +69,8 @@ MAX_SVG_BYTES = 32 * 2**20  # `render` input: an SVG larger than this is refused
                    "before decoding, and a large one is vectorized at a smaller copy (at most 2048x2048). [2G]")
 @model_options
 @click.pass_context
-def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, tolerance, colors, refine, effort, simplify_px,
-              jobs, compile_, max_memory, model_name, device, seed):
+def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, tolerance, colors, refine, effort, preset,
+              speckle, verbose, simplify_px, jobs, compile_, max_memory, model_name, device, seed):
     """Vectorize images (PNG/JPG, any size) into SVGs of closed cubic paths.
 
     The SVG's viewBox is the input's pixel grid, so it overlays the input exactly.
@@ -83,7 +94,7 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, toleranc
     many = refine and len(items) > 1
     options = VectorizeOptions(refine=refine, effort=effort, segments=k, quality=quality, max_paths=max_paths,
                                simplify_px=simplify_px, parts=parts, tolerance=tolerance, colors=colors,
-                               compile=compile_, max_memory=max_memory)
+                               compile=compile_, max_memory=max_memory, preset=preset, speckle=speckle)
     if jobs is None:
         on_cpu = next(model.parameters()).device.type == "cpu"
         jobs = min(free, MAX_AUTO_JOBS) if many and on_cpu and len(items) >= JOBS_MIN_IMAGES else 1
@@ -97,6 +108,8 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, toleranc
             return item, Im2VecError(f"{item}: {vec}")
         try:
             write_output(where[item], vec.to_svg(), parents=not single)
+            if verbose:
+                click.echo(describe_result(item, vec), err=True)
             return item, None
         except Im2VecError as exc:
             return item, exc
@@ -113,11 +126,22 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, toleranc
 _APPLIES = {
     "tolerance": (lambda p: p["refine"] and p["parts"] == "clean", "it shapes --parts clean with refinement"),
     "colors": (lambda p: p["refine"] and p["parts"] == "clean", "it shapes --parts clean with refinement"),
+    "preset": (lambda p: p["refine"] and p["parts"] == "clean", "it shapes --parts clean with refinement"),
+    "speckle": (lambda p: p["refine"] and p["parts"] == "clean", "it shapes --parts clean with refinement"),
     "effort": (lambda p: p["refine"], "it sets how hard refinement works, and --no-refine skips it"),
     "parts": (lambda p: p["refine"], "--no-refine writes the model's own paths"),
     "compile_": (lambda p: p["refine"], "it compiles the refinement, and --no-refine skips it"),
     "quality": (lambda p: p["segments"] == "auto", "it sets --segments auto's choice"),
 }
+
+
+def describe_result(item, vec) -> str:
+    """One line on a vectorized picture: where from, the kind it was read as and what it measured,
+    its paths and segments."""
+    notes = vec.notes or {}
+    figures = ", ".join(f"{k} {v}" for k, v in (notes.get("reading") or {}).items())
+    kind = f"{notes['kind']} ({figures})" if figures else notes.get("kind", "model paths")
+    return f"{item}: {kind}; {len(vec.shapes)} paths, {vec.num_segments} segments"
 
 
 def _ignored_options(ctx: click.Context) -> list[str]:

@@ -13,7 +13,7 @@ from ..events import RefineStep
 from ..infer import flat_result
 from ..model.vae import Im2Vec
 from ..options import MAX_WORK_PIXELS, PARTS
-from ..trace import clean_outlines, simplify
+from ..trace import Reading, clean_outlines, read, simplify
 from ..vector import VectorImage, VectorShape
 from .settings import RefineSettings
 from .stages import Refinement
@@ -74,20 +74,21 @@ def refine_batch(
     on_step: Callable[[RefineStep], None] | None = None,
     batch: int = REFINE_BATCH,
     max_work_pixels: int = MAX_WORK_PIXELS,
+    preset: str | None = None,
+    speckle: int | None = None,
 ) -> list[tuple[VectorImage, dict]]:
     """``refine`` of many images ``(3, H_i, W_i)``: images of one size are refined together,
     ``batch`` at a time, each step one render of them all; an image that has converged stops
     costing. Each image gets what ``refine`` alone gives it, up to float rounding (the
     batch sums per-image losses; Adam's state is per coordinate). Returns ``(vector image,
     summary)`` per image, in order. A picture of more than ``max_work_pixels`` is vectorized at
-    an area-averaged copy that large, its result scaled back to its own frame."""
-    if parts not in PARTS:
-        raise ValueError(f"parts must be one of {PARTS}, got {parts!r}")
-    for im in images:
-        if im.dim() != 3 or im.shape[0] != 3:
-            raise ValueError(f"image must be (3, H, W), got {tuple(im.shape)}")
-    sizes = [tuple(im.shape[1:]) for im in images]
+    an area-averaged copy that large, its result scaled back to its own frame.
+
+    With ``parts="clean"`` each picture is first read (``trace.read``, ``preset``, ``speckle``) and
+    its clean picture traced; the summary's ``kind`` and ``reading`` say what it was read as."""
+    sizes = _sizes(images, parts)
     images = [_workable(im, max_work_pixels) for im in images]
+    images, readings = _read(images, preset, speckle) if parts == "clean" else (images, None)
     out: list = [None] * len(images)
     by_size: dict[tuple[int, int], list[int]] = {}
     for i, im in enumerate(images):
@@ -105,19 +106,39 @@ def refine_batch(
                 for start in range(0, len(group), batch):
                     ids = group[start : start + batch]
                     run = Refinement(model, [images[i] for i in ids], settings, on_step)
+                    kw = {"segments": segments, "quality": quality, "max_paths": max_paths}
                     if parts == "model":
-                        got = _model_paths(run, list(range(len(ids))), segments, quality, max_paths)
+                        got = _model_paths(run, list(range(len(ids))), **kw)
                     else:
-                        from_model = functools.partial(_model_paths, run, segments=segments, quality=quality,
-                                                       max_paths=max_paths, outline=True)
                         got = clean_outlines(run.images, run, settings.outline_settings(), colors=colors,
-                                             max_paths=max_paths, model_paths=from_model)
+                                             max_paths=max_paths, readings=[readings[i] for i in ids],
+                                             model_paths=functools.partial(_model_paths, run, **kw, outline=True))
                     for i, r in zip(ids, got):
                         out[i] = r
     finally:
         for p, r in zip(model.parameters(), req):
             p.requires_grad_(r)
-    return [(_rescaled(v, size), info) for (v, info), size in zip(out, sizes)]
+    notes = [{"kind": r.kind, "reading": r.figures or {}} for r in readings] if readings else [{}] * len(out)
+    return [(_rescaled(v, size), {**info, **n}) for (v, info), size, n in zip(out, sizes, notes)]
+
+
+def _sizes(images: list[torch.Tensor], parts: str) -> list[tuple[int, int]]:
+    """Each image's ``(H, W)``; ``ValueError`` for a bad ``parts`` or an image not ``(3, H, W)``."""
+    if parts not in PARTS:
+        raise ValueError(f"parts must be one of {PARTS}, got {parts!r}")
+    for im in images:
+        if im.dim() != 3 or im.shape[0] != 3:
+            raise ValueError(f"image must be (3, H, W), got {tuple(im.shape)}")
+    return [tuple(im.shape[1:]) for im in images]
+
+
+def _read(images: list[torch.Tensor], preset: str | None, speckle: int | None
+          ) -> tuple[list[torch.Tensor], list[Reading]]:
+    """Each picture read (``trace.read``) and its clean picture, ``(3, H', W')`` on its device."""
+    readings = [read(im.permute(1, 2, 0).double().cpu().numpy(), preset, speckle) for im in images]
+    pictures = [torch.from_numpy(np.ascontiguousarray(r.picture.transpose(2, 0, 1))).to(im)
+                for r, im in zip(readings, images)]
+    return pictures, readings
 
 
 def _workable(image: torch.Tensor, most: int) -> torch.Tensor:

@@ -45,7 +45,8 @@ class RefineSettings:
 
     def outline_settings(self) -> OutlineSettings:
         """The settings of the clean-outline pipeline (``trace.clean_outlines``)."""
-        return OutlineSettings(self.tolerance, self.split_error, self.max_segments, self.model_start)
+        return OutlineSettings(self.tolerance, self.split_error, self.max_segments, self.model_start,
+                               polish=self.outline_steps > 0, polish_side=self.max_side)
 
 
 # Named efforts (`vectorize --effort`; options.EFFORTS names them, torch-free, for the CLI).
@@ -56,6 +57,8 @@ class RefineSettings:
 # 0.9914 / 0.00018 in 1.01 s; potrace 0.9524 / 0.00283), so that one `vectorize` fits in about 2 s
 # with torch's import.
 EFFORTS = {  # in the order of options.EFFORTS
+    "draft": RefineSettings(latent_steps=0, point_steps=0, polish_steps=0, outline_steps=0, split_error=0.0,
+                            model_start=False),  # clean outlines traced and fitted, not polished
     "fast": RefineSettings(latent_steps=5, point_steps=25, polish_steps=15, polish_samples=8, outline_steps=25,
                            model_start=False),
     "best": RefineSettings(split_error=0.005),

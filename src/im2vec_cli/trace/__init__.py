@@ -1,7 +1,9 @@
 """Clean outlines: a picture's regions traced, rings fitted with few cubics, outlines made
 clean (united, corrected, untangled) and polished through the renderer.
 
-The stage list is ``pipeline.clean_outlines``; its parts, bottom up:
+The stage list is ``pipeline.clean_outlines``, after ``read`` (what kind of picture it is and
+the clean picture it shows: scans flattened and cleaned, pixel art at one pixel a block); its
+parts, bottom up:
 
 - ``palette``: a multi-colour picture's colours and each pixel's label (a hard-edged
   picture's exact colours, else a quantised palette, specks absorbed);
@@ -20,12 +22,13 @@ Frame: the pixel frame of the picture (``vector/image.py``).
 from .fit import Corners, fit_ring, fit_rings, split_segments
 from .outline import cleaned, redrawn, traced
 from .pipeline import CHOICE_TOLERANCE, OutlineSettings, Polisher, clean_outlines, split_where_wrong
+from .read import KINDS, Reading, read
 from .regions import Region, background_color, level_polygons, trace, two_tone
 from .simplify import simplify, simplify_contour
 from .untangle import crosses, untangle
 
 __all__ = [
-    "CHOICE_TOLERANCE", "Corners", "OutlineSettings", "Polisher", "Region", "background_color", "clean_outlines",
+    "CHOICE_TOLERANCE", "Corners", "KINDS", "OutlineSettings", "Polisher", "Reading", "Region", "read", "background_color", "clean_outlines",
     "cleaned", "crosses", "fit_ring", "fit_rings", "level_polygons", "redrawn", "simplify", "simplify_contour",
     "split_segments", "split_where_wrong", "trace", "traced", "two_tone", "untangle",
 ]

@@ -30,6 +30,7 @@ from ..raster import flatten_closed
 from ..vector import VectorImage, VectorShape, fill_vector
 from .fit import Corners, split_segments
 from .outline import redrawn, traced
+from .read import Reading
 from .regions import background_color, two_tone
 from .untangle import untangle
 
@@ -46,6 +47,11 @@ class OutlineSettings:
     model_start: bool = True  # a two-tone picture also starts from the model's paths
     polish_segments: int = 4000  # an outline of more segments is not polished: each step would render them all,
     # at the fit size (128 px) where a picture of that many is finer than a pixel; it is fitted within tolerance
+    polish: bool = True  # False (`--effort draft`): traced and fitted only, nothing rendered
+    polish_side: int = 128  # a picture of a longer side is not polished: the polish renders at this size
+    # (refinement's max_side), where the outline, fitted within tolerance of the full-size picture, is finer
+    # than a pixel. On 400-600 px pictures it made things worse: MSE 0.00056 polished against 0.00036 not on
+    # logos, 0.00131 against 0.00071 on scans (bench/realworld.py)
 
 
 class Polisher(Protocol):
@@ -70,6 +76,8 @@ class Start:
     paths: VectorImage | None = None
     colors: int | None = None
     max_paths: int | None = None
+    pixel: bool = False  # pixel art: traced along its pixel edges, whatever its colours
+    tone: tuple[np.ndarray, np.ndarray] | None = None  # a two-tone picture's ink and coverage (``read.Reading``)
 
     def outline(self, tol: float) -> tuple[VectorImage, Corners, bool]:
         """Fitted within ``tol`` px, even-odd: the contours of a clean shape do not overlap, so
@@ -77,46 +85,60 @@ class Start:
         (seconds on a picture of many regions). ``finish`` writes them nonzero. The flag:
         the outline is exact (``outline.traced``), not to be polished."""
         if self.paths is None:
-            vec, flags, exact = traced(self.picture, tol, self.colors, self.max_paths)
+            vec, flags, exact = traced(self.picture, tol, self.colors, self.max_paths, self.pixel, self.tone)
         else:
             (vec, flags), exact = redrawn(self.paths, tol, self.picture), False
         return with_rule(vec, "evenodd"), flags, exact
 
 
 def clean_outlines(images: list[torch.Tensor], polisher: Polisher, s: OutlineSettings = OutlineSettings(), *,
-                   colors: int | None = None, max_paths: int | None = None, model_paths: ModelPaths | None = None
-                   ) -> list[tuple[VectorImage, dict]]:
+                   colors: int | None = None, max_paths: int | None = None, model_paths: ModelPaths | None = None,
+                   readings: list[Reading] | None = None) -> list[tuple[VectorImage, dict]]:
     """Clean outlines of ``images`` (each ``(3, H, W)`` in [0, 1]): non-overlapping outer
     contours and holes, nonzero, fitted within ``s.tolerance`` px and polished against the
     picture. ``model_paths`` gives the model's paths of pictures (the second start).
+    ``readings``: what each picture is (``read.read``: ``images`` are their clean pictures); its
+    kind shapes the trace (pixel art along its pixel edges), the palette of a photo and
+    whether the outline is polished.
 
     Returns per picture the vector image and a summary: ``loss_end`` (the polisher's loss),
     ``start`` (which start was kept), ``segments``, and the model stage's figures where it ran.
     """
     pictures = [im.permute(1, 2, 0).double().cpu().numpy() for im in images]  # (H, W, 3)
-    starts, info = _starts(pictures, s, colors, max_paths, model_paths)
+    readings = readings or [Reading("", pic) for pic in pictures]
+    each = [r.colors if colors is None else colors for r in readings]
+    polish_these = [s.polish and r.polish and max(pic.shape[:2]) <= s.polish_side
+                    for r, pic in zip(readings, pictures)]
+    starts, info = _starts(pictures, s, each, readings, polish_these, max_paths, model_paths)
     chosen = choose(starts, polisher)
     made = [start.outline(s.tolerance) for start in chosen]
     vecs, flags = [v for v, _, _ in made], [f for _, f, _ in made]
     todo = [i for i, (v, _, exact) in enumerate(made)  # an empty one has nothing to draw, an exact one nothing
-            if v.shapes and not exact and v.num_segments <= s.polish_segments]  # to fix
-    vecs, loss = polish(polisher, vecs, flags, todo)
-    if s.split_error > 0:
+            if v.shapes and not exact and v.num_segments <= s.polish_segments and polish_these[i]]  # to fix
+    vecs, loss = polish(polisher, vecs, flags, todo) if todo else (vecs, {})
+    if s.split_error > 0 and loss:
         vecs, loss = split_and_polish(polisher, pictures, vecs, flags, loss, s)
-    return [finish(polisher, i, vecs[i], loss.get(i), info[i], chosen[i].name) for i in range(len(vecs))]
+    return [finish(polisher, i, vecs[i], loss.get(i), info[i], chosen[i].name, judge=polish_these[i])
+            for i in range(len(vecs))]
 
 
-def _starts(pictures: list[np.ndarray], s: OutlineSettings, colors: int | None, max_paths: int | None,
-            model_paths: ModelPaths | None) -> tuple[list[list[Start]], list[dict]]:
+def _starts(pictures: list[np.ndarray], s: OutlineSettings, colors: list[int | None], readings: list[Reading],
+            polished: list[bool], max_paths: int | None, model_paths: ModelPaths | None
+            ) -> tuple[list[list[Start]], list[dict]]:
     """Per picture its starts (the image's own first) and the model stage's summary (or ``{}``).
 
     Multi-colour pictures start from their own regions only: the shipped emoji model's paths
-    lost to them on every OpenMoji face tried (bench/outlines.py) and cost seconds."""
-    starts = [[Start("image", pic, colors=colors, max_paths=max_paths)] for pic in pictures]
+    lost to them on every OpenMoji face tried (bench/outlines.py) and cost seconds. So do
+    pictures that are not polished (``polished``): the model's paths are drawn at the polish's
+    size, coarser than the picture's own trace."""
+    starts = [[Start("image", pic, colors=k, max_paths=max_paths, pixel=r.kind == "pixel", tone=r.tone)]
+              for pic, k, r in zip(pictures, colors, readings)]
     info: list[dict] = [{} for _ in pictures]
-    if model_paths is None or not s.model_start or colors not in (None, 1):
+    if model_paths is None or not s.model_start:
         return starts, info
-    two = [i for i, pic in enumerate(pictures) if two_tone(pic, background_color(pic)) is not None]
+    two = [i for i, pic in enumerate(pictures)
+           if colors[i] in (None, 1) and polished[i] and readings[i].kind != "pixel"
+           and (readings[i].tone is not None or two_tone(pic, background_color(pic)) is not None)]
     if two:
         for i, (paths, summary) in zip(two, model_paths(two)):
             info[i] = summary
@@ -199,11 +221,12 @@ def split_where_wrong(vec: VectorImage, flags: Corners, picture: np.ndarray, s: 
     return VectorImage(vec.width, vec.height, shapes), out_flags, count
 
 
-def finish(polisher: Polisher, i: int, vec: VectorImage, loss: float | None, info: dict, start: str
-           ) -> tuple[VectorImage, dict]:
+def finish(polisher: Polisher, i: int, vec: VectorImage, loss: float | None, info: dict, start: str,
+           judge: bool = True) -> tuple[VectorImage, dict]:
     """Picture ``i``'s result written nonzero and untangled, with its summary (one never
-    polished, empty or exact, is judged as it is)."""
-    if loss is None:
+    polished, empty or exact, is judged as it is; with ``judge`` False, not at all: a draft
+    renders nothing)."""
+    if loss is None and judge:
         loss = polisher.loss([vec], [i])[0]
     v = untangle(with_rule(vec, "nonzero"))
     return v, {**info, "loss_end": loss, "start": start, "segments": v.num_segments}

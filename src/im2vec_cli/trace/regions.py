@@ -32,7 +32,7 @@ import torch
 
 from ..errors import TraceError
 from ..raster.bezier import polygon_area
-from .palette import _flat_pixels, hard_palette, quantize
+from .palette import FLAT_BY_FILTERS, _flat_pixels, hard_palette, quantize
 
 MAX_REGIONS = 10_000  # regions (or rings of a two-tone picture) traced at most: a few ms each...
 MAX_PIECES = 100_000  # ...and pieces at most when --max-paths keeps only the largest of them
@@ -97,12 +97,15 @@ def _ink_line(image: np.ndarray, bg: np.ndarray, extreme: float) -> tuple[np.nda
 
 
 def two_tone(image: np.ndarray, bg: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-    """``(ink (3,), alpha (H, W))`` when every pixel mixes ``bg`` and one ink colour, else ``None``."""
+    """``(ink (3,), alpha (H, W))`` when every pixel mixes ``bg`` and one ink colour, else ``None``.
+    (A picture of more than ``FLAT_BY_FILTERS`` pixels is tested in float32: half the memory.)"""
+    if image.shape[0] * image.shape[1] > FLAT_BY_FILTERS:
+        image, bg = image.astype(np.float32), bg.astype(np.float32)
     if np.linalg.norm(image - bg, axis=-1).max() < 0.1:
         return None
     ink, t = _ink_line(image, bg, 0.9)
     off = np.linalg.norm(image - (bg + t[..., None] * (ink - bg)), axis=-1)  # off the background-ink line
-    alpha = np.clip(t, 0, 1)
+    alpha = np.clip(t, 0, 1).astype(np.float64)
     if (off > TWO_TONE_TOL).mean() > TWO_TONE_SHARE:
         return None
     if ((alpha > 0.15) & (alpha < 0.85) & _flat_pixels(image)).mean() > TWO_TONE_SHARE:
@@ -111,7 +114,7 @@ def two_tone(image: np.ndarray, bg: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 
 
 def trace(image: np.ndarray, colors: int | None = None, max_regions: int | None = None,
-          seed: int = 0) -> list[Region]:
+          seed: int = 0, pixel: bool = False, tone: tuple[np.ndarray, np.ndarray] | None = None) -> list[Region]:
     """The regions of ``image (H, W, 3)`` in [0, 1], back to front.
 
     Args:
@@ -119,13 +122,21 @@ def trace(image: np.ndarray, colors: int | None = None, max_regions: int | None 
             reproduce the flat areas, at most 16). ``colors == 1`` treats any picture as
             two-tone (the ink is its darkest extreme).
         max_regions: keep this many regions at most (the largest).
+        pixel: the picture is pixel art (``read.read``): its exact colours traced along its
+            pixel edges, whatever their number (at most ``MAX_HARD_COLORS``) or mixes.
+        tone: ``two_tone(image, background_color(image))`` where it is known (``read.read``).
     """
     image = np.asarray(image, dtype=np.float64)
     bg = background_color(image)
-    hard = hard_palette(image) if colors is None else None
+    hard = hard_palette(image, pixel) if colors is None or pixel else None
     if hard is not None:
+        if max_regions is None:  # the back layer covers the canvas, unless white shows around the picture
+            return _layers(*hard, white_around=(1 - bg).max() <= WHITE_TOL)
         return _with_background(bg, _stacked_regions(image, *hard, max_regions, exact=True), image.shape, exact=True)
-    tone = two_tone(image, bg) if colors in (None, 1) else None
+    if colors in (None, 1):
+        tone = two_tone(image, bg) if tone is None else tone
+    else:
+        tone = None
     if tone is None and colors == 1:
         ink, t = _ink_line(image, bg, 0.8)
         tone = ink, np.clip(t, 0, 1)
@@ -134,6 +145,40 @@ def trace(image: np.ndarray, colors: int | None = None, max_regions: int | None 
         return _with_background(bg, [Region(tuple(ink.tolist()), level_polygons(alpha))], image.shape)
     palette, labels = quantize(image, colors, seed)
     return _with_background(bg, _stacked_regions(image, palette, labels, max_regions), image.shape)
+
+
+def _layers(palette: np.ndarray, labels: np.ndarray, white_around: bool) -> list[Region]:
+    """A hard-edged picture as one shape a colour, along its pixel edges: the colours stacked
+    by area, largest at the back, each shape the union of its own pixels and those of every
+    colour above it (so no background shows between neighbours at any zoom, and each colour is
+    one path however many pieces it has). ``white_around``: the white around the picture
+    (touching its border) is the canvas."""
+    _check_pieces(sum(label_count(labels == k) for k in range(len(palette))), f"pieces of {len(palette)} colours",
+                  None)
+    white = _white(palette)
+    around = np.zeros(labels.shape, dtype=bool)
+    if white >= 0 and white_around:
+        from scipy.ndimage import label
+
+        lab, _ = label(labels == white)
+        edge = np.unique(np.concatenate([lab[0], lab[-1], lab[:, 0], lab[:, -1]]))
+        around = np.isin(lab, edge[edge > 0])
+    areas = np.bincount(labels[~around], minlength=len(palette))
+    order = [k for k in np.argsort(-areas, kind="stable") if areas[k] > 0]
+    regions, covered = [], ~around
+    for k in order:
+        regions.append(Region(tuple(palette[k].tolist()), pixel_polygons(covered), exact=True))
+        covered = covered & (labels != k)
+        if not covered.any():
+            break
+    return regions
+
+
+def label_count(mask: np.ndarray) -> int:
+    """The connected pieces (8-connected) of ``mask``."""
+    from scipy.ndimage import label
+
+    return int(label(mask, structure=np.ones((3, 3)))[1])
 
 
 def _with_background(bg: np.ndarray, regions: list[Region], shape, exact: bool = False) -> list[Region]:

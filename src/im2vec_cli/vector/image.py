@@ -29,6 +29,7 @@ class VectorImage:
     width: float
     height: float
     shapes: list[VectorShape] = field(default_factory=list)
+    notes: dict = field(default_factory=dict, compare=False, repr=False)  # how it was made (``api.vectorize``)
 
     @property
     def num_segments(self) -> int:

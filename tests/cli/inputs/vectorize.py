@@ -258,3 +258,30 @@ def in_stdin_endless(d, m):
     from im2vec_cli import files
 
     return ["vectorize", "-", "-o", str(d / "out.svg")], b"\0" * (files.MAX_INPUT_BYTES + 1)
+
+
+in_preset_unknown = vectorize_with("--preset", "poster")
+
+
+in_speckle_negative = vectorize_with("--filter-speckle", "-1")
+
+
+in_speckle_huge = vectorize_with("--filter-speckle", "100000")
+
+
+in_speckle_not_a_number = vectorize_with("--filter-speckle", "2px")
+
+
+in_effort_unknown = vectorize_with("--effort", "sketch")
+
+
+def in_preset_pixel_on_a_photo(d, m):
+    """Pixel art forced on a picture of more colours than pixel art has: traced as it is."""
+    rng = np.random.default_rng(0)
+    Image.fromarray(rng.integers(0, 256, (48, 48, 3), dtype=np.uint8)).save(d / "x.png")
+    return ["vectorize", str(d / "x.png"), "-o", str(d / "out.svg"), "--preset", "pixel"], None
+
+
+def in_preset_scan_on_white(d, m):
+    save(Image.new("RGB", (64, 64), (255, 255, 255)), d / "x.png")
+    return ["vectorize", str(d / "x.png"), "-o", str(d / "out.svg"), "--preset", "scan"], None

@@ -1,0 +1,277 @@
+"""Read a picture as a person would before tracing it: what kind of picture it is, and the clean
+picture it shows.
+
+- **pixel**: pixel art: exact colours, blocks of ``block`` px (nearest-neighbour upscaling);
+  the picture is read at one pixel a block and traced along its pixel edges;
+- **scan**: a scan or phone photo of ink on paper: the paper's uneven light flattened (its
+  brightness fitted by a smooth surface and divided out), the noise and JPEG ringing smoothed
+  away, and the result read as ink on white paper; black-looking ink becomes black;
+- **line**: a two-tone drawing of thin (1-3 px) strokes, traced at half each stroke's own
+  darkness (``half_max``), so that strokes thinner than a pixel stay whole;
+- **logo**: flat colours (glyphs, icons, logos, emoji), JPEG ringing smoothed first;
+- **photo**: a continuous-tone picture, smoothed and posterised to ``PHOTO_COLORS`` colours.
+
+Pixel art and photos are not polished through the renderer (the one exact, the other of too
+many segments); nor is any picture larger than the polish's size (``OutlineSettings.polish_side``).
+
+Pieces (and holes) smaller than ``speckle`` x ``speckle`` px are dropped from scans and line
+art (``--filter-speckle``, as vtracer has).
+
+Frame: ``(H, W, 3)`` float arrays in [0, 1].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..options import PRESETS
+from .palette import MAX_HARD_COLORS, hard_palette
+from .regions import background_color, two_tone
+
+KINDS = PRESETS[1:]  # the kinds of picture: options.PRESETS but "auto"
+NOISE = 0.012  # noise sigma (skimage's wavelet estimate) above which a picture is read as noisy
+UNEVEN = 0.06  # a paper whose fitted brightness varies by more than this is unevenly lit
+THIN = 3.5  # px: strokes at most this wide (median) make line art
+PHOTO_COLORS = 12  # the palette of a posterised photo
+PHOTO_SHARE = 0.6  # a picture whose 16 commonest colours (4 bits a channel) cover less than this share is a photo
+BLACK_INK = 0.35  # ink of a scan darker than this (mean channel, after flattening) and ...
+NEUTRAL_INK = 0.12  # ... less colourful than this (channel spread) is black ink
+
+
+@dataclass(frozen=True)
+class Reading:
+    """What a picture is (``kind``, one of ``KINDS``) and the clean ``picture (H', W', 3)`` to
+    trace: the input's size, or for pixel art ``block`` times smaller (one pixel a block).
+    ``colors``: the palette size it asks for (photos), else ``None``. ``polish``: whether the
+    outline is worth polishing against the picture. ``figures``: what the reading measured.
+    ``tone``: a two-tone picture's ink and its coverage (``regions.two_tone``), found once."""
+
+    kind: str
+    picture: np.ndarray
+    block: int = 1
+    colors: int | None = None
+    polish: bool = True
+    figures: dict | None = None
+    tone: tuple[np.ndarray, np.ndarray] | None = None  # a two-tone picture's (ink (3,), coverage (H', W'))
+
+
+def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = None) -> Reading:
+    """The reading of ``picture (H, W, 3)`` in [0, 1]: of the kind ``preset`` (one of
+    ``KINDS``) or, with ``None``, of the kind it looks like. ``speckle``: pieces smaller than
+    this many px a side are dropped from scans and line art (``None``: 2 px, and 1 px more per
+    256 px of the picture's longer side)."""
+    h, w, _ = picture.shape
+    speck = max(2, 2 + max(h, w) // 256) if speckle is None else speckle
+    block = pixel_block(picture) if preset in (None, "pixel") else 1
+    if preset == "pixel" or (preset is None and (block > 1 or hard_palette(picture) is not None)):
+        small = picture[::block, ::block] if block > 1 else picture
+        return Reading("pixel", small, block, polish=False, figures={"block": block})
+    bg = background_color(picture)
+    tone = two_tone(picture, bg) if preset in (None, "line", "logo") else None
+    if preset is None and tone is not None:
+        width = stroke_width(tone[1] >= 0.5)
+        kind = "line" if width <= THIN else "logo"
+        return Reading(kind, picture, figures={"stroke": round(width, 2)},
+                       tone=(tone[0], half_max(tone[1])) if kind == "line" else tone)
+    if preset in ("line", "logo") and tone is not None:
+        return Reading(preset, picture, tone=(tone[0], half_max(tone[1])) if preset == "line" else tone)
+    noise = noise_sigma(picture)
+    figures = {"noise": round(noise, 4)}
+    if preset in (None, "scan", "line"):
+        flat, light = flattened(picture)
+        figures["light"] = round(light, 3)
+        if preset is not None or noise > NOISE or light > UNEVEN:
+            ink, alpha = ink_coverage(flat, smoothed(flat.mean(-1), noise))
+            if preset is not None or _is_two_tone(flat, ink, alpha):
+                alpha, ink = despeckled(alpha, speck), _ink_color(ink)
+                clean = 1 - alpha[..., None] * (1 - ink)
+                kind = preset or ("line" if stroke_width(alpha >= 0.5) <= THIN else "scan")
+                if kind == "line":
+                    alpha = half_max(alpha)
+                return Reading(kind, clean, figures=figures, tone=(ink, alpha) if alpha.max() >= 0.1 else None)
+    if preset == "photo" or (preset is None and color_share(picture, 16) < PHOTO_SHARE):
+        return Reading("photo", smoothed(picture, max(noise, 0.02)), colors=PHOTO_COLORS, polish=False,
+                       figures=figures)
+    return Reading("logo", smoothed(picture, noise) if noise > NOISE else picture, figures=figures)
+
+
+def pixel_block(picture: np.ndarray) -> int:
+    """The side of the blocks of one colour a nearest-neighbour upscaled picture is made of
+    (aligned with its top-left corner, dividing its sides; 1 when there are none): the
+    greatest common divisor of the rows and columns at which the colours change."""
+    h, w, _ = picture.shape
+    sample = np.round(picture[:: max(1, h // 64), :: max(1, w // 64)] * 255).astype(np.int64)
+    if len(np.unique((sample[..., 0] << 16) | (sample[..., 1] << 8) | sample[..., 2])) > MAX_HARD_COLORS:
+        return 1  # more colours than pixel art has (most pictures: a sample says so)
+    q = np.round(picture * 255).astype(np.uint8)
+    rows = np.nonzero((q[1:] != q[:-1]).any((1, 2)))[0] + 1
+    cols = np.nonzero((q[:, 1:] != q[:, :-1]).any((0, 2)))[0] + 1
+    if len(rows) == 0 and len(cols) == 0:
+        return 1
+    block = int(np.gcd.reduce(np.concatenate([rows, cols, [h, w]])))
+    if block < 2:
+        return 1
+    small = q[::block, ::block].astype(np.int64)
+    keys = (small[..., 0] << 16) | (small[..., 1] << 8) | small[..., 2]
+    if len(np.unique(keys)) > MAX_HARD_COLORS:
+        return 1
+    return block
+
+
+def noise_sigma(picture: np.ndarray) -> float:
+    """The picture's noise (standard deviation, in [0, 1] units), Immerkaer's estimate made
+    robust: the median absolute response to the 3x3 mask that cancels smooth shading (edges,
+    a few pixels, do not move the median), on a copy of at most 512 px a side."""
+    from scipy.ndimage import convolve
+
+    h, w, _ = picture.shape
+    y0, x0 = (h - min(h, 512)) // 2, (w - min(w, 512)) // 2
+    gray = picture[y0 : y0 + 512, x0 : x0 + 512].mean(-1)
+    mask = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], dtype=np.float64)
+    r = convolve(gray, mask, mode="reflect")[1:-1, 1:-1]
+    return float(1.4826 * np.median(np.abs(r)) / 6 * np.sqrt(3))  # grey is the mean of 3 channels
+
+
+def color_share(picture: np.ndarray, k: int) -> float:
+    """The share of the pixels that the ``k`` commonest colours (4 bits a channel) cover: near 1
+    for flat colours, JPEG'd or not; about half or less for a photo."""
+    q = (picture[:: max(1, picture.shape[0] // 256), :: max(1, picture.shape[1] // 256)] * 15.999).astype(np.int64)
+    counts = np.bincount(((q[..., 0] << 8) | (q[..., 1] << 4) | q[..., 2]).ravel(), minlength=4096)
+    return float(np.sort(counts)[::-1][:k].sum() / counts.sum())
+
+
+SURFACE_DEGREE = 3  # the paper's light: a polynomial surface of this degree in x and y
+SURFACE_SIDE = 96  # fitted on a copy this small
+
+
+def flattened(picture: np.ndarray) -> tuple[np.ndarray, float]:
+    """``(picture with the paper's light divided out, the light's range)``: the paper (the
+    brighter side of Otsu's threshold, refined twice against the flattened picture) fitted per
+    channel by a smooth polynomial surface; the paper of the result is white."""
+    from skimage.filters import threshold_otsu
+
+    h, w, _ = picture.shape
+    step = max(1, max(h, w) // SURFACE_SIDE)
+    sh, sw = h // step, w // step
+    small = picture[: sh * step, : sw * step].reshape(sh, step, sw, step, 3).mean((1, 3))  # block means
+    ys, xs = (np.arange(sh) + 0.5) * step / h, (np.arange(sw) + 0.5) * step / w
+    basis = _basis(np.tile(xs, sh), np.repeat(ys, sw))  # (N, B)
+    flat_small = small.reshape(-1, 3)
+    lum = flat_small.mean(-1)
+    paper, coef = lum > threshold_otsu(lum), None
+    for _ in range(3):
+        if paper.sum() < basis.shape[1] * 4:
+            break
+        a = basis[paper]  # least squares by the normal equations: B x B, B = 10
+        coef = np.linalg.solve(a.T @ a + 1e-9 * np.eye(a.shape[1]), a.T @ flat_small[paper])  # (B, 3)
+        light = np.clip(basis @ coef, 0.05, None)  # (N, 3)
+        flat_lum = (flat_small / light).mean(-1)
+        paper = flat_lum > threshold_otsu(flat_lum)
+    if coef is None:
+        return picture, 0.0  # too little paper to fit its light: as it is
+    full = _surface(coef, (np.arange(w) + 0.5) / w, (np.arange(h) + 0.5) / h)  # (H, W, 3)
+    spread = float(light.mean(-1).max() - light.mean(-1).min())
+    return np.clip(picture / np.clip(full, 0.05, None), 0, 1), spread
+
+
+def _basis(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    return np.stack([x**i * y**j for i, j in _POWERS], -1)
+
+
+_POWERS = [(i, j) for i in range(SURFACE_DEGREE + 1) for j in range(SURFACE_DEGREE + 1 - i)]
+
+
+def _surface(coef: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+    """The polynomials ``coef (B, 3)`` over the grid ``ys x xs``: ``Y C X^T`` per channel, with
+    ``C[j, i]`` the coefficient of ``x^i y^j`` (no ``(H*W, B)`` basis)."""
+    n = SURFACE_DEGREE + 1
+    out = []
+    for c in range(coef.shape[1]):
+        grid = np.zeros((n, n))
+        for (i, j), v in zip(_POWERS, coef[:, c]):
+            grid[j, i] = v
+        out.append(np.vander(ys, n, increasing=True) @ grid @ np.vander(xs, n, increasing=True).T)
+    return np.stack(out, -1)
+
+
+def smoothed(picture: np.ndarray, noise: float) -> np.ndarray:
+    """``picture`` (``(H, W)`` or ``(H, W, 3)``) with noise of ``noise`` sigma and JPEG ringing
+    smoothed away, edges kept: a 3x3 median (specks, ringing), then a Gaussian as wide as the
+    noise asks."""
+    from scipy.ndimage import gaussian_filter, median_filter
+
+    size, sigma = (3, 3, 1)[: picture.ndim], min(1.5, 0.5 + 25 * noise)
+    out = median_filter(picture.astype(np.float32), size=size)
+    return gaussian_filter(out, (sigma, sigma, 0)[: picture.ndim]).astype(np.float64)
+
+
+def ink_coverage(picture: np.ndarray, lum: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(ink colour (3,), coverage (H, W))`` of a picture of ink on white paper, from its
+    (smoothed) brightness ``lum (H, W)``: the coverage is each pixel's place between the paper's
+    and the ink's typical brightness (the medians of either side of Otsu's threshold), clipped
+    to [0, 1]; the ink's colour is the mean of the fully covered pixels of ``picture``."""
+    from skimage.filters import threshold_otsu
+
+    sample = lum[:: max(1, lum.shape[0] // 256), :: max(1, lum.shape[1] // 256)]
+    t = threshold_otsu(sample)
+    dark, light = sample[sample <= t], sample[sample > t]
+    ink_l = float(np.median(dark)) if len(dark) else 0.0
+    paper_l = float(np.median(light)) if len(light) else 1.0
+    alpha = np.clip((paper_l - lum) / max(paper_l - ink_l, 1e-3), 0, 1)
+    full = alpha >= 0.9
+    ink = picture[full].mean(0) if full.any() else np.zeros(3)
+    return ink, alpha
+
+
+def _is_two_tone(flat: np.ndarray, ink: np.ndarray, alpha: np.ndarray) -> bool:
+    """Whether the flattened picture is ink on paper: the ink's colour explains its dark pixels
+    (few pixels far from the paper-ink line) and the ink stands out of the paper."""
+    if ink.mean() > 0.75:
+        return False
+    sample = (slice(None, None, 2), slice(None, None, 2))
+    model = 1 - alpha[sample][..., None] * (1 - ink)
+    off = np.linalg.norm(flat[sample] - model, axis=-1)
+    return bool((off > 0.25).mean() < 0.02)
+
+
+def _ink_color(ink: np.ndarray) -> np.ndarray:
+    """The ink as a person reads it: dark and grey is black; any other ink keeps its colour."""
+    if ink.mean() < BLACK_INK and np.ptp(ink) < NEUTRAL_INK:
+        return np.zeros(3)
+    return ink
+
+
+def half_max(alpha: np.ndarray, floor: float = 0.3) -> np.ndarray:
+    """Line art's coverage ``alpha (H, W)`` over its local peak (3x3, at least ``floor``): the 0.5
+    level is then at half the stroke's own darkness, so a stroke thinner than a pixel, whose
+    anti-aliased pixels never reach 0.5, is traced as a line about a pixel wide, not as dashes."""
+    from .palette import _extreme3
+
+    peak = _extreme3(alpha[..., None], np.maximum)[..., 0]
+    return np.clip(alpha / np.maximum(peak, floor), 0, 1)
+
+
+def despeckled(alpha: np.ndarray, speck: int) -> np.ndarray:
+    """``alpha (H, W)`` with ink pieces and paper holes of fewer than ``speck``^2 px removed."""
+    from skimage.morphology import remove_small_holes, remove_small_objects
+
+    if speck <= 1:
+        return alpha
+    ink = alpha >= 0.5
+    keep = remove_small_objects(ink, max_size=speck * speck - 1)
+    keep = remove_small_holes(keep, max_size=speck * speck - 1)
+    out = alpha.copy()
+    out[ink & ~keep] = 0.0
+    out[~ink & keep] = 1.0
+    return out
+
+
+def stroke_width(ink: np.ndarray) -> float:
+    """The mean width (px) of the strokes of ``ink (H, W)``: twice its area over its perimeter
+    (pixel edges between ink and paper), which is a stroke's width for strokes much longer than
+    wide (``inf`` without ink)."""
+    edges = int((ink[1:] != ink[:-1]).sum() + (ink[:, 1:] != ink[:, :-1]).sum())
+    edges += int(ink[0].sum() + ink[-1].sum() + ink[:, 0].sum() + ink[:, -1].sum())
+    return 2 * float(ink.sum()) / edges if edges else float("inf")

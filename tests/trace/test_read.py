@@ -1,0 +1,168 @@
+"""Reading a picture before tracing it (``trace.read``): its kind, and the clean picture it shows,
+checked against the exact SVG each test picture is rendered from (cairosvg)."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+import torch
+from PIL import Image
+from scipy.ndimage import distance_transform_edt, gaussian_filter
+
+from im2vec_cli import api
+from im2vec_cli.trace import OutlineSettings, clean_outlines, read
+from im2vec_cli.trace.read import despeckled, noise_sigma, pixel_block, stroke_width
+from im2vec_cli.vector import rasterize_svg
+from tests.trace.outlines import needs_fonts, svg_of, topology
+
+RING = '<circle cx="{c}" cy="{c}" r="{r}" fill="none" stroke="black" stroke-width="{w}"/>'
+
+
+def drawing(size: int) -> np.ndarray:
+    """``(H, W, 3)``: a thick ring and a bar, black on white, rendered exactly."""
+    s = size / 64
+    body = (RING.format(c=24 * s, r=14 * s, w=8 * s)
+            + f'<rect x="{44 * s}" y="{8 * s}" width="{10 * s}" height="{48 * s}"/>')
+    return rasterize_svg(svg_of(body, size), size, size)
+
+
+def scanned(clean: np.ndarray, seed: int = 0) -> np.ndarray:
+    """``clean`` as a phone photo makes it: warm paper, light falling off, blur, noise, JPEG 40."""
+    rng = np.random.default_rng(seed)
+    h, w, _ = clean.shape
+    yy, xx = np.mgrid[0:h, 0:w] / max(h, w)
+    light = 0.97 - 0.35 * ((xx + yy) / 2) ** 1.5
+    a = 1 - clean.mean(-1, keepdims=True)
+    img = (np.array([0.97, 0.93, 0.85]) * (1 - a) + np.array([0.12, 0.11, 0.15]) * a) * light[..., None]
+    img = gaussian_filter(img, (1.2, 1.2, 0)) + rng.normal(0, 0.04, img.shape)
+    buf = io.BytesIO()
+    Image.fromarray(np.round(np.clip(img, 0, 1) * 255).astype(np.uint8)).save(buf, "JPEG", quality=40)
+    return np.asarray(Image.open(buf).convert("RGB"), np.float64) / 255
+
+
+def iou(a: np.ndarray, b: np.ndarray) -> float:
+    return float((a & b).sum() / max((a | b).sum(), 1))
+
+
+def test_a_scan_reads_as_black_ink_on_white_paper():
+    clean = drawing(256)
+    r = read(scanned(clean))
+    assert r.kind == "scan"
+    truth, got = clean.mean(-1) < 0.5, r.picture.mean(-1) < 0.5
+    assert iou(truth, got) > 0.97
+    assert topology(got) == topology(truth)
+    assert r.picture[gaussian_filter(got.astype(float), 2) < 0.01].min() > 0.9  # the paper is white, shaded or not
+    assert r.picture[gaussian_filter(got.astype(float), 2) > 0.99].max() < 0.05  # the grey ink is black
+
+
+def test_the_clean_picture_of_a_clean_render_is_itself():
+    clean = drawing(128)
+    r = read(clean)
+    assert r.kind == "logo" and r.picture is clean and r.polish
+
+
+def test_forced_scan_reads_a_clean_render_too():
+    clean = drawing(128)
+    r = read(clean, "scan")
+    assert r.kind == "scan"
+    assert iou(clean.mean(-1) < 0.5, r.picture.mean(-1) < 0.5) > 0.98
+
+
+def test_noise_estimate_follows_the_noise():
+    rng = np.random.default_rng(0)
+    flat = np.full((128, 128, 3), 0.5)
+    for sigma in (0.01, 0.03, 0.06):
+        got = noise_sigma(flat + rng.normal(0, sigma, flat.shape))
+        assert sigma * 0.7 < got < sigma * 1.3, (sigma, got)
+    assert noise_sigma(drawing(128)) < 0.005  # edges are not noise
+
+
+def test_pixel_block_finds_nearest_neighbour_upscaling():
+    rng = np.random.default_rng(0)
+    sprite = rng.integers(0, 5, (12, 10))
+    colors = rng.uniform(0, 1, (5, 3)).round(2)
+    assert pixel_block(np.kron(colors[sprite], np.ones((8, 8, 1)))) == 8
+    assert pixel_block(np.kron(colors[sprite], np.ones((3, 3, 1)))) == 3
+    assert pixel_block(colors[sprite]) == 1
+    assert pixel_block(drawing(64)) == 1  # anti-aliased: no blocks
+    cut = np.kron(colors[sprite], np.ones((8, 8, 1)))[:-3]  # the blocks do not divide the picture
+    assert pixel_block(cut) == 1
+
+
+@needs_fonts
+def test_pixel_art_is_exact_with_one_path_a_colour():
+    rng = np.random.default_rng(1)
+    sprite = rng.integers(0, 6, (16, 16))
+    colors = np.vstack([[1, 1, 1], rng.integers(0, 256, (5, 3)) / 255])
+    big = np.kron(colors[sprite], np.ones((8, 8, 1)))
+    vec = api.vectorize(torch.from_numpy(big).permute(2, 0, 1).float(), "fonts")
+    assert vec.notes["kind"] == "pixel" and vec.notes["reading"]["block"] == 8
+    back = rasterize_svg(vec.to_svg(), 128, 128)
+    assert ((back - big) ** 2).mean() <= 1e-4
+    assert len(vec.shapes) <= 6  # one path a colour
+
+
+def test_thin_strokes_are_line_art():
+    size = 256
+    body = "".join(RING.format(c=c, r=r, w=1.5) for c, r in ((90, 60), (150, 70), (128, 30)))
+    pic = rasterize_svg(svg_of(body, size), size, size)
+    r = read(pic)
+    assert r.kind == "line"
+    assert stroke_width(pic.mean(-1) < 0.5) < 3
+    assert stroke_width(drawing(256).mean(-1) < 0.5) > 10
+
+
+@needs_fonts
+def test_line_art_stays_lines_without_gaps():
+    size = 256
+    body = "".join(RING.format(c=c, r=r, w=1.5) for c, r in ((90, 60), (150, 70), (128, 30)))
+    pic = rasterize_svg(svg_of(body, size), size, size)
+    vec = api.vectorize(torch.from_numpy(pic).permute(2, 0, 1).float(), "fonts")
+    back = rasterize_svg(vec.to_svg(), size, size)
+    level = 0.75  # a 1.5 px stroke's anti-aliased pixels: any darkening counts as ink
+    assert topology(back.mean(-1) < level) == topology(pic.mean(-1) < level)
+    far = distance_transform_edt(pic.mean(-1) > 0.99) > 1.5  # 1.5 px off the lines: what they enclose
+    assert back[far].min() > 0.9  # stays background
+
+
+def test_despeckle_drops_small_pieces_and_holes_only():
+    alpha = np.zeros((40, 40))
+    alpha[5:7, 5:7] = 1  # a 2x2 speck
+    alpha[10:30, 10:30] = 1  # a square...
+    alpha[19:21, 19:21] = 0  # ...with a 2x2 pin hole
+    alpha[32:38, 32:38] = 1  # a 6x6 dot
+    out = despeckled(alpha, 4)
+    assert out[5:7, 5:7].max() == 0 and out[19:21, 19:21].min() == 1 and out[32:38, 32:38].min() == 1
+    assert (despeckled(alpha, 0) == alpha).all()
+
+
+def test_a_photo_is_posterised():
+    import skimage.data
+
+    photo = np.asarray(Image.fromarray(skimage.data.astronaut()).resize((128, 128), Image.LANCZOS)) / 255.0
+    r = read(photo)
+    assert r.kind == "photo" and r.colors is not None and not r.polish
+
+
+class NoRenderer:
+    def loss(self, vecs, index):
+        raise AssertionError("a draft renders nothing")
+
+    def polish_outline(self, vecs, flags, index):
+        raise AssertionError("a draft polishes nothing")
+
+
+def test_a_draft_traces_and_fits_without_rendering():
+    clean = drawing(64)
+    (vec, info), = clean_outlines([torch.from_numpy(clean).permute(2, 0, 1)], NoRenderer(), OutlineSettings(polish=False))
+    back = rasterize_svg(vec.to_svg(), 64, 64)
+    assert iou(back.mean(-1) < 0.5, clean.mean(-1) < 0.5) > 0.95 and info["loss_end"] is None
+
+
+@pytest.mark.parametrize("preset", ["scan", "logo", "line", "pixel", "photo"])
+def test_every_preset_gives_a_picture_of_the_input_size(preset):
+    clean = drawing(64)
+    r = read(clean, preset)
+    assert r.kind == preset and r.picture.shape == clean.shape
