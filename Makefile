@@ -4,7 +4,7 @@ DATA ?= data
 PIP ?= .venv/bin/pip
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: install test test-slow fuzz lint bench bench-cli bench-safety bench-hardening bench-vectorize bench-outlines bench-folder results demo data-fonts data-mnist data-emoji data-icons clean
+.PHONY: install test test-slow fuzz lint bench bench-cli bench-safety bench-hardening bench-realworld bench-vectorize bench-outlines bench-folder results demo data-fonts data-mnist data-emoji data-icons clean
 
 install: .venv/.installed
 
@@ -40,6 +40,18 @@ bench-safety: install
 
 bench-hardening: install
 	$(PY) bench/hardening.py --out docs/hardening-run.md
+
+# The pictures people bring (issue 34): scans, logos, pixel art, line art, photos and a 2048 px scanned page,
+# against potrace and vtracer in one run: docs/REALWORLD.md and its contact sheets in docs/realworld/. About 8 minutes.
+bench-realworld: install
+	command -v potrace >/dev/null || (apt-get update -q && apt-get install -y -q potrace)
+	test -f /usr/share/fonts/truetype/freefont/FreeSans.ttf -a -f /usr/share/fonts/truetype/lato/Lato-Regular.ttf || \
+	  (apt-get update -q && apt-get install -y -q fonts-freefont-ttf fonts-lato)
+	$(PIP) install -q vtracer==0.6.15
+	mkdir -p bench/.sets && cd bench/.sets && \
+	  (test -d fa || (npm pack -q @fortawesome/fontawesome-free@7.3.1 && mkdir fa && tar -xzf fortawesome-fontawesome-free-7.3.1.tgz -C fa)) && \
+	  (test -d om || (npm pack -q @iconify-json/openmoji@1.2.29 && mkdir om && tar -xzf iconify-json-openmoji-1.2.29.tgz -C om))
+	$(PY) bench/realworld.py --markdown docs/REALWORLD.md
 
 bench-cli: install
 	test -f /usr/share/fonts/truetype/freefont/FreeSerif.ttf || (apt-get update -q && apt-get install -y -q fonts-freefont-ttf)

@@ -63,7 +63,9 @@ def quantize(image: np.ndarray, colors: int | None, seed: int = 0, max_colors: i
 
     The palette is fitted (k-means) to the *flat* pixels, whose 3x3 neighbourhood has one
     colour, so that anti-aliased edges do not get colours of their own; with ``colors=None``
-    ``K`` grows until the flat pixels' mean squared error is below ``flat_mse``. Edge pixels
+    ``K`` grows until the flat pixels' mean squared error is below ``flat_mse`` and at most
+    ``FAR_SHARE`` of them are ``FAR_COLOR`` or farther from their colour (a small area of a
+    distinct colour, a grey arc beside a pale blue, keeps a colour of its own). Edge pixels
     take the nearest palette colour among those of the flat pixels within two pixels.
     """
     from scipy.cluster.vq import kmeans2
@@ -80,8 +82,8 @@ def quantize(image: np.ndarray, colors: int | None, seed: int = 0, max_colors: i
         centres, lab = kmeans2(pool, k, minit="++", seed=rng, iter=20)
         used = np.unique(lab)
         centres = centres[used]
-        err = ((pool - centres[np.argmin(((pool[:, None] - centres[None]) ** 2).sum(-1), 1)]) ** 2).sum(-1).mean()
-        if err <= flat_mse:
+        err = ((pool - centres[np.argmin(((pool[:, None] - centres[None]) ** 2).sum(-1), 1)]) ** 2).sum(-1)
+        if err.mean() <= flat_mse and (err > FAR_COLOR**2).mean() <= FAR_SHARE:
             break
     if not colors:
         pixels = image.reshape(-1, 3)
@@ -92,6 +94,33 @@ def quantize(image: np.ndarray, colors: int | None, seed: int = 0, max_colors: i
     return np.clip(centres, 0, 1), _absorb_specks(labels, max(2, min(h * w // 2000, MAX_SPECK)))
 
 
+PHOTO_COLORS = 12  # the palette of a posterised photo (``posterize``) unless --colors says
+PHOTO_SPECK = 2e-4  # a photo's pieces smaller than this share of its pixels are absorbed (52 px at 512 px)
+
+
+def posterize(image: np.ndarray, colors: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Palette ``(K, 3)`` and labels ``(H, W)`` of a photo: k-means in CIELAB (distances as the
+    eye sees them, so a small patch of a distinct hue keeps a colour of its own) on a sample of
+    all its pixels, each pixel given the nearest colour, specks absorbed."""
+    from scipy.cluster.vq import kmeans2
+    from skimage.color import lab2rgb, rgb2lab
+
+    h, w, _ = image.shape
+    lab = rgb2lab(image).reshape(-1, 3)
+    rng = np.random.default_rng(seed)
+    pool = lab[rng.choice(len(lab), min(len(lab), 20000), replace=False)]
+    centres, _ = kmeans2(pool, min(colors, len(np.unique(np.round(pool), axis=0))), minit="++", seed=rng, iter=20)
+    labels = np.empty(len(lab), dtype=np.int64)
+    for lo in range(0, len(lab), 1 << 16):  # nearest centre, in blocks (bounded memory)
+        d = ((lab[lo : lo + (1 << 16), None] - centres[None]) ** 2).sum(-1)
+        labels[lo : lo + (1 << 16)] = np.argmin(d, 1)
+    used, labels = np.unique(labels, return_inverse=True)
+    palette = np.clip(lab2rgb(centres[used][None])[0], 0, 1)
+    return palette, _absorb_specks(labels.reshape(h, w), max(2, int(PHOTO_SPECK * h * w)))
+
+
+FAR_COLOR = 0.12  # RGB distance of a flat pixel from its palette colour that is another colour...
+FAR_SHARE = 0.005  # ...when more than this share of the flat pixels are that far
 THIN_SAMPLE = 65_536  # pixels in which ``_thin_colors`` looks for the colours of thin features (a 256 px
 # picture's worth: at 512 px, 262,144 took 1.9 s of a logo's 4; bench/realworld.py)
 

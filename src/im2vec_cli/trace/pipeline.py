@@ -76,7 +76,7 @@ class Start:
     paths: VectorImage | None = None
     colors: int | None = None
     max_paths: int | None = None
-    pixel: bool = False  # pixel art: traced along its pixel edges, whatever its colours
+    kind: str = ""  # what the picture was read as (``read.Reading.kind``): pixel art and photos are traced their way
     tone: tuple[np.ndarray, np.ndarray] | None = None  # a two-tone picture's ink and coverage (``read.Reading``)
 
     def outline(self, tol: float) -> tuple[VectorImage, Corners, bool]:
@@ -85,7 +85,7 @@ class Start:
         (seconds on a picture of many regions). ``finish`` writes them nonzero. The flag:
         the outline is exact (``outline.traced``), not to be polished."""
         if self.paths is None:
-            vec, flags, exact = traced(self.picture, tol, self.colors, self.max_paths, self.pixel, self.tone)
+            vec, flags, exact = traced(self.picture, tol, self.colors, self.max_paths, self.kind, self.tone)
         else:
             (vec, flags), exact = redrawn(self.paths, tol, self.picture), False
         return with_rule(vec, "evenodd"), flags, exact
@@ -111,7 +111,7 @@ def clean_outlines(images: list[torch.Tensor], polisher: Polisher, s: OutlineSet
                     for r, pic in zip(readings, pictures)]
     starts, info = _starts(pictures, s, each, readings, polish_these, max_paths, model_paths)
     chosen = choose(starts, polisher)
-    made = [start.outline(s.tolerance) for start in chosen]
+    made = [start.outline(s.tolerance * r.loose) for start, r in zip(chosen, readings)]
     vecs, flags = [v for v, _, _ in made], [f for _, f, _ in made]
     todo = [i for i, (v, _, exact) in enumerate(made)  # an empty one has nothing to draw, an exact one nothing
             if v.shapes and not exact and v.num_segments <= s.polish_segments and polish_these[i]]  # to fix
@@ -131,7 +131,7 @@ def _starts(pictures: list[np.ndarray], s: OutlineSettings, colors: list[int | N
     lost to them on every OpenMoji face tried (bench/outlines.py) and cost seconds. So do
     pictures that are not polished (``polished``): the model's paths are drawn at the polish's
     size, coarser than the picture's own trace."""
-    starts = [[Start("image", pic, colors=k, max_paths=max_paths, pixel=r.kind == "pixel", tone=r.tone)]
+    starts = [[Start("image", pic, colors=k, max_paths=max_paths, kind=r.kind, tone=r.tone)]
               for pic, k, r in zip(pictures, colors, readings)]
     info: list[dict] = [{} for _ in pictures]
     if model_paths is None or not s.model_start:

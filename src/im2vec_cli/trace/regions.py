@@ -32,7 +32,7 @@ import torch
 
 from ..errors import TraceError
 from ..raster.bezier import polygon_area
-from .palette import FLAT_BY_FILTERS, _flat_pixels, hard_palette, quantize
+from .palette import FLAT_BY_FILTERS, PHOTO_COLORS, _flat_pixels, hard_palette, posterize, quantize
 
 MAX_REGIONS = 10_000  # regions (or rings of a two-tone picture) traced at most: a few ms each...
 MAX_PIECES = 100_000  # ...and pieces at most when --max-paths keeps only the largest of them
@@ -114,7 +114,7 @@ def two_tone(image: np.ndarray, bg: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 
 
 def trace(image: np.ndarray, colors: int | None = None, max_regions: int | None = None,
-          seed: int = 0, pixel: bool = False, tone: tuple[np.ndarray, np.ndarray] | None = None) -> list[Region]:
+          seed: int = 0, kind: str = "", tone: tuple[np.ndarray, np.ndarray] | None = None) -> list[Region]:
     """The regions of ``image (H, W, 3)`` in [0, 1], back to front.
 
     Args:
@@ -122,12 +122,14 @@ def trace(image: np.ndarray, colors: int | None = None, max_regions: int | None 
             reproduce the flat areas, at most 16). ``colors == 1`` treats any picture as
             two-tone (the ink is its darkest extreme).
         max_regions: keep this many regions at most (the largest).
-        pixel: the picture is pixel art (``read.read``): its exact colours traced along its
-            pixel edges, whatever their number (at most ``MAX_HARD_COLORS``) or mixes.
+        kind: what ``read.read`` read the picture as. ``"pixel"``: its exact colours traced
+            along its pixel edges, whatever their number (at most ``MAX_HARD_COLORS``) or
+            mixes; ``"photo"``: posterised (``palette.posterize``).
         tone: ``two_tone(image, background_color(image))`` where it is known (``read.read``).
     """
     image = np.asarray(image, dtype=np.float64)
     bg = background_color(image)
+    pixel = kind == "pixel"
     hard = hard_palette(image, pixel) if colors is None or pixel else None
     if hard is not None:
         if max_regions is None:  # the back layer covers the canvas, unless white shows around the picture
@@ -143,7 +145,7 @@ def trace(image: np.ndarray, colors: int | None = None, max_regions: int | None 
     if tone is not None:
         ink, alpha = tone
         return _with_background(bg, [Region(tuple(ink.tolist()), level_polygons(alpha))], image.shape)
-    palette, labels = quantize(image, colors, seed)
+    palette, labels = posterize(image, colors or PHOTO_COLORS, seed) if kind == "photo" else quantize(image, colors, seed)
     return _with_background(bg, _stacked_regions(image, palette, labels, max_regions), image.shape)
 
 

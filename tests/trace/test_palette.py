@@ -1,0 +1,44 @@
+"""The palette of a picture (``trace.palette``): distinct colours keep a colour of their own."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from im2vec_cli.trace.palette import posterize, quantize
+
+
+def _nearest(palette: np.ndarray, color) -> float:
+    return float(np.linalg.norm(palette - np.asarray(color), axis=1).min())
+
+
+def test_a_small_area_of_a_distinct_colour_keeps_its_own():
+    """A pale blue field in a black frame with a thin grey ring (2% of the picture, 0.21 from the
+    blue): the mean error of one colour for both is small, and grey is a mix of black and white
+    (an edge colour, not a colour of its own, by that test), but the ring is another colour."""
+    yy, xx = np.mgrid[0:128, 0:128]
+    pic = np.ones((128, 128, 3))
+    pic[14:116, 4:124] = 0.0
+    pic[20:110, 10:118] = (0.6, 0.8, 0.95)
+    r = np.hypot(yy - 64, xx - 64)
+    grey = (0.75, 0.78, 0.8)
+    pic[(r > 12) & (r < 16)] = grey
+    palette, labels = quantize(pic, None)
+    assert _nearest(palette, grey) < 0.05 and _nearest(palette, (0.6, 0.8, 0.95)) < 0.05
+    ring = (r > 13) & (r < 15)
+    assert np.linalg.norm(palette[labels[ring]] - grey, axis=-1).max() < 0.05
+
+
+def test_posterize_keeps_a_small_patch_of_a_distinct_hue():
+    """A noisy orange photo with a purple patch of 2% of it: k-means in CIELAB on all pixels
+    gives the patch a colour of its own, and labels cover the picture with few specks."""
+    rng = np.random.default_rng(0)
+    yy, xx = np.mgrid[0:160, 0:160]
+    pic = np.stack([0.85 + 0 * xx, 0.35 + 0.3 * xx / 160, 0.15 + 0.1 * yy / 160], -1)
+    disc = np.hypot(yy - 50, xx - 110) < 13
+    pic[disc] = (0.45, 0.3, 0.75)
+    pic = np.clip(pic + rng.normal(0, 0.02, pic.shape), 0, 1)
+    palette, labels = posterize(pic, 8)
+    assert _nearest(palette, (0.45, 0.3, 0.75)) < 0.08
+    purple = np.argmin(np.linalg.norm(palette - (0.45, 0.3, 0.75), axis=1))
+    assert (labels[disc] == purple).mean() > 0.95 and (labels[~disc] == purple).mean() < 0.01
+    assert labels.shape == (160, 160) and len(palette) <= 8
