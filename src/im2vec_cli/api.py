@@ -24,7 +24,7 @@ programmers).
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -33,7 +33,7 @@ import torch
 from . import infer
 from . import refine as refinement
 from .errors import ConfigError, ModelError, VectorizeError, describe
-from .events import Encoding, FeatureData, FeatureTest, Measuring, Skipped
+from .events import Encoding, Event, FeatureData, FeatureTest, Measuring, Skipped
 from .files import as_image
 from .model.pretrained import DEFAULT_MODEL, from_pretrained
 from .options import PARTS, VectorizeOptions
@@ -58,8 +58,8 @@ def _model(model):
     return load_model(model) if isinstance(model, str) else model
 
 
-def vectorize(images, model=DEFAULT_MODEL, options: VectorizeOptions | None = None,
-              **fields) -> VectorImage | list[VectorImage]:
+def vectorize(images, model=DEFAULT_MODEL, options: VectorizeOptions | None = None, *,
+              on_event: Callable[[Event], None] | None = None, **fields) -> VectorImage | list[VectorImage]:
     """Vectorize one picture (or a list of them) into closed cubic paths.
 
     Args:
@@ -67,6 +67,8 @@ def vectorize(images, model=DEFAULT_MODEL, options: VectorizeOptions | None = No
         model: a model from ``load_model``, or its name.
         options: a ``VectorizeOptions`` (default: its defaults; its docstring describes each
             field); ``fields`` override any of them by name (``vectorize(img, m, parts="model")``).
+        on_event: hears the progress of refinement: ``events.Stage`` (read, traced, polished,
+            finished) and ``events.RefineStep``.
 
     Returns:
         One ``VectorImage`` per picture (a list for a list), in each picture's pixel frame.
@@ -77,14 +79,14 @@ def vectorize(images, model=DEFAULT_MODEL, options: VectorizeOptions | None = No
     pictures = [as_image(x) for x in ([images] if one else images)]
     check_segments(model, o.segments)
     if o.refine:
-        out = _refined(model, pictures, o)
+        out = _refined(model, pictures, o, on_event)
     else:
         kw = {"segments": o.segments, "quality": o.quality, "max_paths": o.max_paths}
         out = [simplify(v, o.simplify_px or 0.0) for v in infer.vectorize(model, pictures, **kw)]
     return out[0] if one else out
 
 
-def _refined(model, pictures: list[torch.Tensor], o: VectorizeOptions) -> list[VectorImage]:
+def _refined(model, pictures: list[torch.Tensor], o: VectorizeOptions, on_event=None) -> list[VectorImage]:
     """``vectorize`` with refinement: each result with its ``notes`` (``_notes``)."""
     settings = refinement.EFFORTS[o.effort]
     if o.simplify_px is not None:
@@ -94,7 +96,7 @@ def _refined(model, pictures: list[torch.Tensor], o: VectorizeOptions) -> list[V
     with compiling(o.compile):  # off by default: each new image size would compile afresh
         got = refinement.refine_batch(model, pictures, settings=settings, parts=o.parts, colors=o.colors,
                                       segments=o.segments, quality=o.quality, max_paths=o.max_paths,
-                                      max_work_pixels=o.work_pixels(), speckle=o.speckle,
+                                      max_work_pixels=o.work_pixels(), speckle=o.speckle, on_step=on_event,
                                       preset=None if o.preset == "auto" else o.preset)
     return [dataclasses.replace(v, notes=_notes(info)) for v, info in got]
 
@@ -104,18 +106,18 @@ def _notes(info: dict) -> dict:
     return {k: info[k] for k in ("kind", "reading", "start", "loss_end") if k in info}
 
 
-def vectorize_each(images: list, model=DEFAULT_MODEL, options: VectorizeOptions | None = None,
-                   **fields) -> list[VectorImage | VectorizeError]:
+def vectorize_each(images: list, model=DEFAULT_MODEL, options: VectorizeOptions | None = None, *,
+                   on_event: Callable[[Event], None] | None = None, **fields) -> list[VectorImage | VectorizeError]:
     """``vectorize`` of a list of pictures in which one picture's failure is its own: each entry
     is the picture's ``VectorImage``, or a ``VectorizeError`` (one line) where its pipeline
     raised anything (a dependency's error, memory running out). The pictures are vectorized
     together; when that fails, each is vectorized alone, to find which. Options and the model
-    are checked first: a bad option raises, as in ``vectorize``."""
+    are checked first: a bad option raises, as in ``vectorize``; ``on_event`` as there."""
     o = dataclasses.replace(options or VectorizeOptions(), **fields)
     model = _model(model)
     check_segments(model, o.segments)
     try:
-        return vectorize(list(images), model, o)
+        return vectorize(list(images), model, o, on_event=on_event)
     except Exception as exc:  # noqa: BLE001 - any failure is one picture's; KeyboardInterrupt is not caught
         if len(images) == 1:
             return [_failed(exc)]

@@ -153,3 +153,11 @@ class RefineStep(Event, kind="refine_step"):
     loss: float
     images: int
     tau: float | None = None
+
+
+class Stage(Event, kind="stage"):
+    """A stage of ``vectorize`` done for a batch of pictures (``STAGES``, in order)."""
+    stage: str
+
+
+STAGES = ("read", "traced", "polished", "finished")  # `Stage.stage`: read, traced and fitted, polished, untangled

@@ -166,3 +166,13 @@ def test_every_preset_gives_a_picture_of_the_input_size(preset):
     clean = drawing(64)
     r = read(clean, preset)
     assert r.kind == preset and r.picture.shape == clean.shape
+
+
+@needs_fonts
+def test_vectorize_tells_its_stages_in_order():
+    """``on_event`` hears each stage once, in order (the CLI's progress bar of one picture)."""
+    from im2vec_cli.events import STAGES, Stage
+
+    heard = []
+    api.vectorize(torch.from_numpy(scanned(drawing(160))).permute(2, 0, 1).float(), "fonts", on_event=heard.append)
+    assert [e.stage for e in heard if isinstance(e, Stage)] == list(STAGES)

@@ -118,7 +118,7 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, toleranc
         threads = runtime.intra_op_threads(len(items), jobs, free)
         run_batch(ctx, items, _in_pool(model_name, jobs, threads, device, seed, options, write), chunk=len(items))
     else:
-        run_batch(ctx, items, _in_process(model, options, write), chunk=VECTORIZE_CHUNK)
+        run_batch(ctx, items, _in_process(model, options, write, single=len(items) == 1), chunk=VECTORIZE_CHUNK)
 
 
 # option -> (when it acts, given the parameters; when it does not, why): an option given on the
@@ -167,15 +167,31 @@ def _load(group, max_pixels: int | None = None):
     return good, bad
 
 
-def _in_process(model, options, write):
-    """``vectorize``'s work on one chunk in this process: one forward pass, one refinement batch."""
+def _in_process(model, options, write, single: bool = False):
+    """``vectorize``'s work on one chunk in this process: one forward pass, one refinement batch.
+    ``single``: one picture, whose stages show as a progress bar on stderr (a terminal's) when
+    it takes more than a second."""
     from .. import api
+    from ..events import STAGES, Stage
+    from ..runtime import progress
 
     def work(group):
         good, bad = _load(group, options.max_input_pixels())
         yield from bad
         if good:
-            for (item, _), vec in zip(good, api.vectorize_each([img for _, img in good], model, options)):
+            bar = progress(total=len(STAGES), desc=good[0][0], unit="stage", delay=1.0, leave=False,
+                           disable=None if single else True)
+
+            def hear(event):
+                if isinstance(event, Stage):
+                    bar.set_postfix_str(event.stage, refresh=False)
+                    bar.update(1)
+
+            try:
+                got = api.vectorize_each([img for _, img in good], model, options, on_event=hear)
+            finally:
+                bar.close()
+            for (item, _), vec in zip(good, got):
                 yield write(item, vec)
 
     return work

@@ -9,7 +9,7 @@ from collections.abc import Callable
 import numpy as np
 import torch
 
-from ..events import RefineStep
+from ..events import Event, Stage
 from ..infer import flat_result
 from ..model.vae import Im2Vec
 from ..options import MAX_WORK_PIXELS, PARTS
@@ -31,7 +31,7 @@ def refine(
     quality: float | None = None,
     max_paths: int | None = None,
     settings: RefineSettings = RefineSettings(),
-    on_step: Callable[[RefineStep], None] | None = None,
+    on_step: Callable[[Event], None] | None = None,
 ) -> tuple[VectorImage, dict]:
     """Vectorise one image ``(3, H, W)`` in [0, 1] and refine the result against it.
 
@@ -71,7 +71,7 @@ def refine_batch(
     quality: float | None = None,
     max_paths: int | None = None,
     settings: RefineSettings = RefineSettings(),
-    on_step: Callable[[RefineStep], None] | None = None,
+    on_step: Callable[[Event], None] | None = None,
     batch: int = REFINE_BATCH,
     max_work_pixels: int = MAX_WORK_PIXELS,
     preset: str | None = None,
@@ -88,7 +88,7 @@ def refine_batch(
     its clean picture traced; the summary's ``kind`` and ``reading`` say what it was read as."""
     sizes = _sizes(images, parts)
     images = [_workable(im, max_work_pixels) for im in images]
-    images, readings = _read(images, preset, speckle) if parts == "clean" else (images, None)
+    images, readings = _read(images, preset, speckle, on_step) if parts == "clean" else (images, None)
     out: list = [None] * len(images)
     by_size: dict[tuple[int, int], list[int]] = {}
     for i, im in enumerate(images):
@@ -111,7 +111,7 @@ def refine_batch(
                         got = _model_paths(run, list(range(len(ids))), **kw)
                     else:
                         got = clean_outlines(run.images, run, settings.outline_settings(), colors=colors,
-                                             max_paths=max_paths, readings=[readings[i] for i in ids],
+                                             max_paths=max_paths, readings=[readings[i] for i in ids], on_stage=on_step,
                                              model_paths=functools.partial(_model_paths, run, **kw, outline=True))
                     for i, r in zip(ids, got):
                         out[i] = r
@@ -132,10 +132,13 @@ def _sizes(images: list[torch.Tensor], parts: str) -> list[tuple[int, int]]:
     return [tuple(im.shape[1:]) for im in images]
 
 
-def _read(images: list[torch.Tensor], preset: str | None, speckle: int | None
+def _read(images: list[torch.Tensor], preset: str | None, speckle: int | None, on_step=None
           ) -> tuple[list[torch.Tensor], list[Reading]]:
-    """Each picture read (``trace.read``) and its clean picture, ``(3, H', W')`` on its device."""
+    """Each picture read (``trace.read``) and its clean picture, ``(3, H', W')`` on its device;
+    ``on_step`` hears ``Stage("read")``."""
     readings = [read(im.permute(1, 2, 0).double().cpu().numpy(), preset, speckle) for im in images]
+    if on_step:
+        on_step(Stage("read"))
     pictures = [torch.from_numpy(np.ascontiguousarray(r.picture.transpose(2, 0, 1))).to(im)
                 for r, im in zip(readings, images)]
     return pictures, readings

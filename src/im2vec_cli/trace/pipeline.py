@@ -26,6 +26,7 @@ from typing import Protocol
 import numpy as np
 import torch
 
+from ..events import Stage
 from ..raster import flatten_closed
 from ..vector import VectorImage, VectorShape, fill_vector
 from .fit import Corners, split_segments
@@ -93,13 +94,14 @@ class Start:
 
 def clean_outlines(images: list[torch.Tensor], polisher: Polisher, s: OutlineSettings = OutlineSettings(), *,
                    colors: int | None = None, max_paths: int | None = None, model_paths: ModelPaths | None = None,
-                   readings: list[Reading] | None = None) -> list[tuple[VectorImage, dict]]:
+                   readings: list[Reading] | None = None, on_stage: Callable[[Stage], None] | None = None
+                   ) -> list[tuple[VectorImage, dict]]:
     """Clean outlines of ``images`` (each ``(3, H, W)`` in [0, 1]): non-overlapping outer
     contours and holes, nonzero, fitted within ``s.tolerance`` px and polished against the
     picture. ``model_paths`` gives the model's paths of pictures (the second start).
     ``readings``: what each picture is (``read.read``: ``images`` are their clean pictures); its
     kind shapes the trace (pixel art along its pixel edges), the palette of a photo and
-    whether the outline is polished.
+    whether the outline is polished. ``on_stage`` hears each stage done (``events.STAGES``).
 
     Returns per picture the vector image and a summary: ``loss_end`` (the polisher's loss),
     ``start`` (which start was kept), ``segments``, and the model stage's figures where it ran.
@@ -112,14 +114,19 @@ def clean_outlines(images: list[torch.Tensor], polisher: Polisher, s: OutlineSet
     starts, info = _starts(pictures, s, each, readings, polish_these, max_paths, model_paths)
     chosen = choose(starts, polisher)
     made = [start.outline(s.tolerance * r.loose) for start, r in zip(chosen, readings)]
+    tell = on_stage or (lambda _: None)
+    tell(Stage("traced"))
     vecs, flags = [v for v, _, _ in made], [f for _, f, _ in made]
     todo = [i for i, (v, _, exact) in enumerate(made)  # an empty one has nothing to draw, an exact one nothing
             if v.shapes and not exact and v.num_segments <= s.polish_segments and polish_these[i]]  # to fix
     vecs, loss = polish(polisher, vecs, flags, todo) if todo else (vecs, {})
     if s.split_error > 0 and loss:
         vecs, loss = split_and_polish(polisher, pictures, vecs, flags, loss, s)
-    return [finish(polisher, i, vecs[i], loss.get(i), info[i], chosen[i].name, judge=polish_these[i])
-            for i in range(len(vecs))]
+    tell(Stage("polished"))
+    out = [finish(polisher, i, vecs[i], loss.get(i), info[i], chosen[i].name, judge=polish_these[i])
+           for i in range(len(vecs))]
+    tell(Stage("finished"))
+    return out
 
 
 def _starts(pictures: list[np.ndarray], s: OutlineSettings, colors: list[int | None], readings: list[Reading],
