@@ -7,9 +7,11 @@ shared/data/font-packages.txt, the icons model's from Material Design Icons, the
 from Twemoji):
 
 - **scans**: glyphs of GNU FreeFont and Lato (Debian fonts-freefont-ttf, fonts-lato) and Font
-  Awesome Free 7.3.1 solid icons (npm), single glyphs, words and icons at 400-600 px, as a
-  phone photo or scan makes them: tinted paper, uneven light, blur, noise, JPEG quality 40;
-- **logos**: OpenMoji 1.2.29 symbols (npm @iconify-json/openmoji) at 512 px, half as JPEG q70;
+  Awesome Free 7.3.1 solid icons (npm), single glyphs, words and icons at 400-600 px and two
+  icons at 1024 px, as a phone photo or scan makes them: tinted paper, uneven light, blur,
+  noise, JPEG quality 40;
+- **logos**: OpenMoji 1.2.29 symbols (npm @iconify-json/openmoji) at 512 px and two at 1024 px,
+  half as JPEG q70;
 - **pixel**: OpenMoji pictures drawn as 16-32 px sprites of at most 12 colours, upscaled 8x;
 - **line**: Font Awesome icons drawn as 1-2 px strokes, and stroked circles and curves, at 512 px;
 - **photos**: scikit-image's sample photos (astronaut, coffee, chelsea), posterised;
@@ -54,6 +56,7 @@ SETS = ("scans", "logos", "pixel", "line", "photos", "large")
 TWO_TONE = {"scans", "line", "large"}
 LOGOS = ["linkedin", "openfoodfact", "recycling-symbol", "no-entry", "radioactive", "peace-symbol", "yin-yang",
          "stop-sign"]
+LARGE_LOGOS = ["rainbow", "1st-place-medal"]
 SPRITES = ["black-cat", "duck", "moai", "latte-macchiato", "red-heart", "rocket", "cherries", "strawberry"]
 WORDS = ["Hamburg", "vector 42", "fox jumps"]
 
@@ -178,16 +181,19 @@ def make_sets(src: Path, names: list[str], limit: int | None) -> dict[str, list[
             rows.append({"name": f"word{i}", "svg": svg, "size": (w, 160)})
         for name, svg in _fa(src, ["house", "camera", "bicycle"]):
             rows.append({"name": name, "svg": svg, "size": (500, 500)})
+        for name, svg in _fa(src, ["gear", "tree"]):  # large scans
+            rows.append({"name": f"{name} (1024 px)", "svg": svg, "size": (1024, 1024)})
         for r in rows:
             r["clean"] = rasterize_svg(r["svg"], *r["size"])
             r["input"] = degrade(r["clean"], rng)
         sets["scans"] = rows
     if "logos" in names:
         rows = []
-        for i, n in enumerate(LOGOS):
-            clean = rasterize_svg(_om_svg(src, n), 512, 512)
-            rows.append({"name": n + (" (jpeg)" if i % 2 else ""), "clean": clean,
-                         "input": _jpeg(clean, 70) if i % 2 else _png(clean)})
+        for i, n in enumerate(LOGOS + LARGE_LOGOS):
+            side = 512 if n in LOGOS else 1024
+            clean = rasterize_svg(_om_svg(src, n), side, side)
+            rows.append({"name": n + (" (jpeg)" if i % 2 else "") + (f" ({side} px)" if side > 512 else ""),
+                         "clean": clean, "input": _jpeg(clean, 70) if i % 2 else _png(clean)})
         sets["logos"] = rows
     if "pixel" in names:
         rows = []
