@@ -52,6 +52,7 @@ from outlines import _topology, held_out_fonts  # noqa: E402
 from vectorize import potrace, svg_structure  # noqa: E402
 
 UP = 4  # contact sheets: crops at 4x
+SMALL_SIDE = 600  # the time target is per picture of at most this many px a side (the 400-600 px ones)
 SETS = ("scans", "logos", "pixel", "line", "photos", "large")
 TWO_TONE = {"scans", "line", "large"}
 LOGOS = ["linkedin", "openfoodfact", "recycling-symbol", "no-entry", "radioactive", "peace-symbol", "yin-yang",
@@ -328,9 +329,11 @@ LINE_LEVEL = 0.75  # line art's ink: any pixel a 1 px stroke darkens by a quarte
 
 
 def score(name: str, rows: list[dict], got: list[tuple[str, float, int | None]]) -> dict:
-    mse, topo, paths, segs, times, peaks, failed = [], [], [], [], [], [], 0
+    mse, topo, paths, segs, times, peaks, failed, small = [], [], [], [], [], [], 0, []
     for r, (svg, sec, peak) in zip(rows, got):
         times.append(sec)
+        if max(r["clean"].shape[:2]) <= SMALL_SIDE:
+            small.append(sec)
         if peak:
             peaks.append(peak)
         if svg.startswith("error:"):
@@ -346,6 +349,7 @@ def score(name: str, rows: list[dict], got: list[tuple[str, float, int | None]])
         segs.append(svg_structure(svg)[0])
     row = {"mse": np.mean(mse) if mse else float("nan"), "paths": np.mean(paths) if paths else 0,
            "segments": np.mean(segs) if segs else 0, "s": statistics.median(times), "failed": failed,
+           "s_small": statistics.median(small) if small else None,
            "peak": max(peaks) if peaks else None}
     if name in TWO_TONE:
         row["topology"] = np.mean(topo) if topo else 0.0
@@ -411,8 +415,9 @@ def sheet(rows: list[dict], outs: dict[str, list[str]], path: Path, side: int = 
 def _line(tool: str, r: dict) -> str:
     topo = f"topology {r['topology']:.0%}  " if "topology" in r else ""
     peak = f"  peak {r['peak'] / 2**20:.0f} MB" if r["peak"] else ""
+    small = f" ({r['s_small']:.2f} s at <= {SMALL_SIDE} px)" if r["s_small"] is not None else ""
     return (f"{tool:24s} MSE {r['mse']:.5f}  {topo}paths {r['paths']:.1f}  segments {r['segments']:.0f}  "
-            f"{r['s']:.2f} s{peak}  failed {r['failed']}")
+            f"{r['s']:.2f} s{small}{peak}  failed {r['failed']}")
 
 
 def markdown(results: dict, sizes: dict, sheets: dict) -> str:
@@ -423,13 +428,15 @@ def markdown(results: dict, sizes: dict, sheets: dict) -> str:
              "the whole command, process start included, and its peak is the process's.\n"]
     for name, rows in results.items():
         lines += [f"\n## {name}: {sizes[name]} pictures\n",
-                  "| tool | MSE | topology | paths | segments | s / picture (median) | peak MB | failed |",
-                  "|---|---|---|---|---|---|---|---|"]
+                  f"| tool | MSE | topology | paths | segments | s / picture (median) | s / picture of <= {SMALL_SIDE} px "
+                  "(median) | peak MB | failed |",
+                  "|---|---|---|---|---|---|---|---|---|"]
         for tool, r in rows.items():
             topo = f"{r['topology']:.0%}" if "topology" in r else "–"
             peak = f"{r['peak'] / 2**20:.0f}" if r["peak"] else "–"
+            small = f"{r['s_small']:.2f}" if r["s_small"] is not None else "–"
             lines.append(f"| {tool} | {r['mse']:.5f} | {topo} | {r['paths']:.1f} | {r['segments']:.0f} | "
-                         f"{r['s']:.2f} | {peak} | {r['failed']} |")
+                         f"{r['s']:.2f} | {small} | {peak} | {r['failed']} |")
         if name in sheets:
             lines.append(f"\n![{name}]({sheets[name]})")
     return "\n".join(lines) + "\n"
