@@ -12,7 +12,7 @@ from PIL import Image
 from scipy.ndimage import distance_transform_edt, gaussian_filter
 
 from im2vec_cli import api
-from im2vec_cli.trace import OutlineSettings, clean_outlines, read
+from im2vec_cli.trace import OutlineSettings, background_color, clean_outlines, read, two_tone
 from im2vec_cli.trace.read import despeckled, noise_sigma, pixel_block, stroke_width
 from im2vec_cli.vector import rasterize_svg
 from tests.trace.outlines import needs_fonts, svg_of, topology
@@ -176,3 +176,47 @@ def test_vectorize_tells_its_stages_in_order():
     heard = []
     api.vectorize(torch.from_numpy(scanned(drawing(160))).permute(2, 0, 1).float(), "fonts", on_event=heard.append)
     assert [e.stage for e in heard if isinstance(e, Stage)] == list(STAGES)
+
+
+def scribbles(seed: int, w: int, h: int) -> np.ndarray:
+    """A phone photo of strokes and circles on paper (bench/hardening.py's scans): warm paper,
+    light falling off as cosines, noise, JPEG 70."""
+    from PIL import ImageDraw, ImageFilter
+
+    rng = np.random.default_rng(seed)
+    img = Image.new("L", (w, h), 245)
+    d = ImageDraw.Draw(img)
+    for _ in range(int(rng.integers(8, 20))):
+        pts = [tuple(int(v) for v in rng.uniform(20, [w - 20, h - 20])) for _ in range(int(rng.integers(3, 9)))]
+        d.line(pts, fill=int(rng.integers(10, 60)), width=int(rng.integers(1, 6)), joint="curve")
+    for _ in range(int(rng.integers(2, 6))):
+        x, y, r = rng.uniform(40, w - 40), rng.uniform(40, h - 40), rng.uniform(8, 40)
+        d.ellipse((x - r, y - r, x + r, y + r), outline=int(rng.integers(10, 60)), width=int(rng.integers(1, 4)))
+    a = np.asarray(img.filter(ImageFilter.GaussianBlur(0.8)), np.float64)
+    yy, xx = np.mgrid[0:h, 0:w]
+    light = 0.65 + 0.35 * np.cos((xx / w - rng.uniform()) * 2.5) * np.cos((yy / h - rng.uniform()) * 2)
+    a = a * light + rng.normal(0, 6, a.shape)
+    buf = io.BytesIO()
+    Image.fromarray(np.stack([a, a * 0.97, a * 0.92], -1).clip(0, 255).astype(np.uint8)).save(buf, "JPEG", quality=70)
+    return np.asarray(Image.open(buf).convert("RGB"), np.float64) / 255
+
+
+def test_shaded_paper_along_the_ink_line_is_a_scan():
+    """Strokes photographed on paper whose light falls off towards the ink's grey: every pixel
+    lies on the paper-ink line, so the picture passes as clean two-tone, but its background is
+    no one colour: it is read as a scan, and the paper comes out white."""
+    pic = scribbles(2, 240, 200)
+    assert two_tone(pic, background_color(pic)) is not None  # what made it look clean
+    r = read(pic)
+    assert r.kind in ("scan", "line")
+    ink = r.picture.mean(-1) < 0.5
+    assert np.median(r.picture[gaussian_filter(ink.astype(float), 2) < 0.01]) > 0.97  # white paper (faint strokes
+    assert np.median(r.picture[gaussian_filter(ink.astype(float), 1) > 0.99]) < 0.05  # stay grey), black ink
+
+
+def test_a_clean_colour_picture_is_not_read_as_a_scan():
+    """A rendered colour picture (no grain) stays a logo, whatever its colours' layout."""
+    body = ('<rect width="64" height="64" fill="#f4d03f"/><circle cx="32" cy="32" r="20" fill="#8e5a2b"/>'
+            '<circle cx="32" cy="32" r="20" fill="none" stroke="black" stroke-width="3"/>')
+    pic = rasterize_svg(svg_of(body, 128), 128, 128)
+    assert read(pic).kind == "logo"

@@ -34,6 +34,10 @@ from .regions import background_color, two_tone
 KINDS = PRESETS[1:]  # the kinds of picture: options.PRESETS but "auto"
 NOISE = 0.012  # noise sigma (skimage's wavelet estimate) above which a picture is read as noisy
 UNEVEN = 0.06  # a paper whose fitted brightness varies by more than this is unevenly lit
+GRAIN = 0.001  # a scan or a photo of paper has at least this much noise; a rendered picture has none
+OFF_LINE = 0.15  # a flattened pixel this far (RGB) from the paper-ink line is another colour...
+OFF_SHARE = 0.05  # ...and a picture with more than this share of them is no ink on paper (scans: under 0.3%,
+# photographed scribbles 3%, OpenMoji faces with a dark outline 12-24%: bench/realworld.py, bench/hardening.py)
 THIN = 3.5  # px: strokes at most this wide (median) make line art
 PHOTO_SHARE = 0.6  # a picture whose 16 commonest colours (4 bits a channel) cover less than this share is a photo
 PHOTO_LOOSE = 2.0  # a photo's curves are fitted within twice the tolerance: 5134 -> 2959 segments on
@@ -73,6 +77,8 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
         return Reading("pixel", small, block, polish=False, figures={"block": block})
     bg = background_color(picture)
     tone = two_tone(picture, bg) if preset in (None, "line", "logo") else None
+    if preset is None and tone is not None and background_spread(picture, tone[1]) > UNEVEN:
+        tone = None  # shaded paper: a scan whose light falls along the ink's colour line, not a clean picture
     if preset is None and tone is not None:
         width = stroke_width(tone[1] >= 0.5)
         kind = "line" if width <= THIN else "logo"
@@ -85,9 +91,9 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
     if preset in (None, "scan", "line"):
         flat, light = flattened(picture)
         figures["light"] = round(light, 3)
-        if preset is not None or noise > NOISE or light > UNEVEN:
+        if preset is not None or (noise > GRAIN and (noise > NOISE or light > UNEVEN)):
             ink, alpha = ink_coverage(flat, smoothed(flat.mean(-1), noise))
-            if preset is not None or _is_two_tone(flat, ink, alpha):
+            if preset is not None or _is_two_tone(flat, ink):
                 alpha, ink = despeckled(alpha, speck), _ink_color(ink)
                 clean = 1 - alpha[..., None] * (1 - ink)
                 kind = preset or ("line" if stroke_width(alpha >= 0.5) <= THIN else "scan")
@@ -98,6 +104,19 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
         return Reading("photo", smoothed(picture, max(noise, 0.02)), colors=PHOTO_COLORS, polish=False,
                        figures=figures, loose=PHOTO_LOOSE)
     return Reading("logo", smoothed(picture, noise) if noise > NOISE else picture, figures=figures)
+
+
+def background_spread(picture: np.ndarray, alpha: np.ndarray) -> float:
+    """How much the brightness of a two-tone picture's background (no coverage: its edges' soft
+    pixels left out) varies: the range of its middle 95%. Nil for a clean render; a scan's
+    shaded paper, all on the paper-ink line, spreads by a tenth or more where it is brighter
+    than its commonest shade at the border (coverage clipped to 0)."""
+    step = max(1, max(alpha.shape) // 256)
+    lum = picture[::step, ::step].mean(-1)[alpha[::step, ::step] <= 0.01]
+    if len(lum) < 16:
+        return 0.0
+    lo, hi = np.percentile(lum, [2.5, 97.5])
+    return float(hi - lo)
 
 
 def pixel_block(picture: np.ndarray) -> int:
@@ -228,15 +247,16 @@ def ink_coverage(picture: np.ndarray, lum: np.ndarray) -> tuple[np.ndarray, np.n
     return ink, alpha
 
 
-def _is_two_tone(flat: np.ndarray, ink: np.ndarray, alpha: np.ndarray) -> bool:
+def _is_two_tone(flat: np.ndarray, ink: np.ndarray) -> bool:
     """Whether the flattened picture is ink on paper: the ink's colour explains its dark pixels
-    (few pixels far from the paper-ink line) and the ink stands out of the paper."""
+    (few pixels far from the paper-ink line, each pixel's coverage read from its own,
+    unsmoothed brightness) and the ink stands out of the paper."""
     if ink.mean() > 0.75:
         return False
-    sample = (slice(None, None, 2), slice(None, None, 2))
-    model = 1 - alpha[sample][..., None] * (1 - ink)
-    off = np.linalg.norm(flat[sample] - model, axis=-1)
-    return bool((off > 0.25).mean() < 0.02)
+    sample = flat[::2, ::2]
+    _, alpha = ink_coverage(sample, sample.mean(-1))
+    off = np.linalg.norm(sample - (1 - alpha[..., None] * (1 - ink)), axis=-1)
+    return bool((off > OFF_LINE).mean() < OFF_SHARE)
 
 
 def _ink_color(ink: np.ndarray) -> np.ndarray:
