@@ -4,7 +4,7 @@ DATA ?= data
 PIP ?= .venv/bin/pip
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: install test test-slow fuzz lint bench bench-cli bench-safety bench-hardening bench-realworld bench-vectorize bench-outlines bench-folder results demo data-fonts data-mnist data-emoji data-icons clean
+.PHONY: install test test-slow fuzz lint bench bench-cli bench-safety bench-hardening bench-realworld bench-sets bench-vectorize bench-outlines bench-folder results demo data-fonts data-mnist data-emoji data-icons clean
 
 install: .venv/.installed
 
@@ -43,7 +43,12 @@ bench-hardening: install
 
 # The pictures people bring (issue 34): scans, logos, pixel art, line art, photos and a 2048 px scanned page,
 # against potrace and vtracer in one run: docs/REALWORLD.md and its contact sheets in docs/realworld/. About 8 minutes.
-bench-realworld: install
+bench-realworld: bench-sets
+	$(PY) bench/realworld.py --markdown docs/REALWORLD.md
+
+# What bench-outlines and bench-realworld compare against and build their sets from, none of it a runtime
+# dependency: potrace, vtracer, GNU FreeFont and Lato, Font Awesome Free 7.3.1 and OpenMoji 1.2.29 (npm).
+bench-sets: install
 	command -v potrace >/dev/null || (apt-get update -q && apt-get install -y -q potrace)
 	test -f /usr/share/fonts/truetype/freefont/FreeSans.ttf -a -f /usr/share/fonts/truetype/lato/Lato-Regular.ttf || \
 	  (apt-get update -q && apt-get install -y -q fonts-freefont-ttf fonts-lato)
@@ -51,7 +56,6 @@ bench-realworld: install
 	mkdir -p bench/.sets && cd bench/.sets && \
 	  (test -d fa || (npm pack -q @fortawesome/fontawesome-free@7.3.1 && mkdir fa && tar -xzf fortawesome-fontawesome-free-7.3.1.tgz -C fa)) && \
 	  (test -d om || (npm pack -q @iconify-json/openmoji@1.2.29 && mkdir om && tar -xzf iconify-json-openmoji-1.2.29.tgz -C om))
-	$(PY) bench/realworld.py --markdown docs/REALWORLD.md
 
 bench-cli: install
 	test -f /usr/share/fonts/truetype/freefont/FreeSerif.ttf || (apt-get update -q && apt-get install -y -q fonts-freefont-ttf)
@@ -72,14 +76,7 @@ bench-vectorize: install
 # and emoji (OpenMoji 1.2.29 faces) against potrace and vtracer (issue "vectorize: clean, complete
 # outlines"): docs/OUTLINES.md and docs/outlines.png. About 25 minutes on 2 cores.
 OUTLINES_ARGS ?= --markdown docs/OUTLINES.md  # e.g. OUTLINES_ARGS="--limit 20" for a quick check
-bench-outlines: install
-	command -v potrace >/dev/null || (apt-get update -q && apt-get install -y -q potrace)
-	test -f /usr/share/fonts/truetype/freefont/FreeSans.ttf -a -f /usr/share/fonts/truetype/lato/Lato-Regular.ttf || \
-	  (apt-get update -q && apt-get install -y -q fonts-freefont-ttf fonts-lato)
-	$(PIP) install -q vtracer==0.6.15
-	mkdir -p bench/.sets && cd bench/.sets && \
-	  (test -d fa || (npm pack -q @fortawesome/fontawesome-free@7.3.1 && mkdir fa && tar -xzf fortawesome-fontawesome-free-7.3.1.tgz -C fa)) && \
-	  (test -d om || (npm pack -q @iconify-json/openmoji@1.2.29 && mkdir om && tar -xzf iconify-json-openmoji-1.2.29.tgz -C om))
+bench-outlines: bench-sets
 	$(PY) bench/outlines.py $(OUTLINES_ARGS)
 	$(PY) docs/make_outlines_figure.py
 

@@ -32,7 +32,7 @@ from .palette import MAX_HARD_COLORS, PHOTO_COLORS, hard_palette
 from .regions import background_color, two_tone
 
 KINDS = PRESETS[1:]  # the kinds of picture: options.PRESETS but "auto"
-NOISE = 0.012  # noise sigma (skimage's wavelet estimate) above which a picture is read as noisy
+NOISE = 0.012  # noise sigma (``noise_sigma``) above which a picture is read as noisy
 UNEVEN = 0.06  # a paper whose fitted brightness varies by more than this is unevenly lit
 GRAIN = 0.001  # a scan or a photo of paper has at least this much noise; a rendered picture has none
 OFF_LINE = 0.15  # a flattened pixel this far (RGB) from the paper-ink line is another colour...
@@ -49,14 +49,13 @@ NEUTRAL_INK = 0.12  # ... less colourful than this (channel spread) is black ink
 @dataclass(frozen=True)
 class Reading:
     """What a picture is (``kind``, one of ``KINDS``) and the clean ``picture (H', W', 3)`` to
-    trace: the input's size, or for pixel art ``block`` times smaller (one pixel a block).
+    trace: the input's size, or for pixel art its block (``figures["block"]``) times smaller.
     ``colors``: the palette size it asks for (photos), else ``None``. ``polish``: whether the
     outline is worth polishing against the picture. ``figures``: what the reading measured.
     ``tone``: a two-tone picture's ink and its coverage (``regions.two_tone``), found once."""
 
     kind: str
     picture: np.ndarray
-    block: int = 1
     colors: int | None = None
     polish: bool = True
     figures: dict | None = None
@@ -74,7 +73,7 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
     block = pixel_block(picture) if preset in (None, "pixel") else 1
     if preset == "pixel" or (preset is None and (block > 1 or hard_palette(picture) is not None)):
         small = picture[::block, ::block] if block > 1 else picture
-        return Reading("pixel", small, block, polish=False, figures={"block": block})
+        return Reading("pixel", small, polish=False, figures={"block": block})
     bg = background_color(picture)
     tone = two_tone(picture, bg) if preset in (None, "line", "logo") else None
     if preset is None and tone is not None and background_spread(picture, tone[1]) > UNEVEN:
@@ -88,10 +87,10 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
         return Reading(preset, picture, tone=(tone[0], half_max(tone[1])) if preset == "line" else tone)
     noise = noise_sigma(picture)
     figures = {"noise": round(noise, 4)}
-    if preset in (None, "scan", "line"):
+    if preset in ("scan", "line") or (preset is None and noise > GRAIN):  # a rendered picture has no paper to flatten
         flat, light = flattened(picture)
         figures["light"] = round(light, 3)
-        if preset is not None or (noise > GRAIN and (noise > NOISE or light > UNEVEN)):
+        if preset is not None or noise > NOISE or light > UNEVEN:
             ink, alpha = ink_coverage(flat, smoothed(flat.mean(-1), noise))
             if preset is not None or _is_two_tone(flat, ink):
                 alpha, ink = despeckled(alpha, speck), _ink_color(ink)

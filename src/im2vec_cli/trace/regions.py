@@ -32,7 +32,7 @@ import torch
 
 from ..errors import TraceError
 from ..raster.bezier import polygon_area
-from .palette import FLAT_BY_FILTERS, PHOTO_COLORS, _flat_pixels, hard_palette, posterize, quantize
+from .palette import FLAT_BY_LEVELS, PHOTO_COLORS, _flat_pixels, hard_palette, posterize, quantize
 
 MAX_REGIONS = 10_000  # regions (or rings of a two-tone picture) traced at most: a few ms each...
 MAX_PIECES = 100_000  # ...and pieces at most when --max-paths keeps only the largest of them
@@ -98,8 +98,8 @@ def _ink_line(image: np.ndarray, bg: np.ndarray, extreme: float) -> tuple[np.nda
 
 def two_tone(image: np.ndarray, bg: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """``(ink (3,), alpha (H, W))`` when every pixel mixes ``bg`` and one ink colour, else ``None``.
-    (A picture of more than ``FLAT_BY_FILTERS`` pixels is tested in float32: half the memory.)"""
-    if image.shape[0] * image.shape[1] > FLAT_BY_FILTERS:
+    (A picture of more than ``FLAT_BY_LEVELS`` pixels is tested in float32: half the memory.)"""
+    if image.shape[0] * image.shape[1] > FLAT_BY_LEVELS:
         image, bg = image.astype(np.float32), bg.astype(np.float32)
     if np.linalg.norm(image - bg, axis=-1).max() < 0.1:
         return None
