@@ -4,7 +4,7 @@ DATA ?= data
 PIP ?= .venv/bin/pip
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: install test test-slow fuzz lint bench bench-cli bench-safety bench-hardening bench-realworld bench-sets bench-vectorize bench-outlines bench-folder results demo data-fonts data-mnist data-emoji data-icons clean
+.PHONY: install test test-slow fuzz lint bench bench-cli bench-safety bench-hardening bench-realworld bench-morphs bench-sets bench-vectorize bench-outlines bench-folder results demo data-fonts data-mnist data-emoji data-icons clean
 
 install: .venv/.installed
 
@@ -45,6 +45,12 @@ bench-hardening: install
 # against potrace and vtracer in one run: docs/REALWORLD.md and its contact sheets in docs/realworld/. About 8 minutes.
 bench-realworld: bench-sets
 	$(PY) bench/realworld.py --markdown docs/REALWORLD.md
+
+# Interpolations you would show (issue 36): 12 pairs of one character in two held-out faces (GNU FreeFont, Lato),
+# every frame scored for fidelity, topology, fill-rule agreement and jumps, with and without the fit; fonts and
+# MNIST samples' pieces and holes: docs/MORPHS.md and docs/morphs.png. About 4 minutes on 2 cores.
+bench-morphs: bench-sets
+	$(PY) bench/morphs.py --markdown docs/MORPHS.md --sheet docs/morphs.png
 
 # What bench-outlines and bench-realworld compare against and build their sets from, none of it a runtime
 # dependency: potrace, vtracer, GNU FreeFont and Lato, Font Awesome Free 7.3.1 and OpenMoji 1.2.29 (npm).

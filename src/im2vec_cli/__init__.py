@@ -9,7 +9,7 @@ import torch::
 
 __version__ = "0.1.0"
 
-# train, train_aux and train_features are in im2vec_cli.api only: the package's modules of those
+# train, train_aux, train_features and project are in im2vec_cli.api only: the package's modules of those
 # names (the training pipelines) would shadow them here
 _API = ("load_model", "vectorize", "vectorize_each", "encode", "decode", "sample", "prior_latents", "interpolate", "fit_prior",
         "load_feature_net", "export")

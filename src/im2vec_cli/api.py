@@ -24,13 +24,14 @@ programmers).
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import torch
 
 from . import infer
+from . import project as projection
 from . import refine as refinement
 from .errors import ConfigError, ModelError, VectorizeError, describe
 from .events import Encoding, Event, FeatureData, FeatureTest, Measuring, Skipped
@@ -43,7 +44,7 @@ from .trace import simplify
 from .vector import VectorImage
 
 __all__ = ["VectorizeOptions", "decode", "encode", "export", "fit_prior", "interpolate", "load_feature_net",
-           "load_model", "prior_latents", "sample", "train", "train_aux", "train_features", "vectorize",
+           "load_model", "prior_latents", "project", "sample", "train", "train_aux", "train_features", "vectorize",
            "vectorize_each"]
 
 
@@ -141,11 +142,27 @@ def check_segments(model, segments: int | str | None) -> None:
                          "(add one with `im2vec train-aux`)")
 
 
-def encode(images, model=DEFAULT_MODEL) -> np.ndarray:
-    """Latents (posterior means) of a picture or a list of pictures: ``(N, D)`` float32."""
-    model = _model(model)
-    pictures = [as_image(x) for x in (images if isinstance(images, (list, tuple)) else [images])]
-    return infer.encode(model, pictures).float().numpy()
+def project(images, model=DEFAULT_MODEL, *, fit: bool = True, segments: int | None = None):
+    """A picture or a list as the model draws them (``project.Projection``: latents and paths),
+    fitted to each (``project.project``) or the encoder's guess (``fit=False``)."""
+    with compiling(False):  # a compile costs tens of seconds, a fit about one
+        return projection.project(_model(model), _pictures(images), _fitting(fit), segments)
+
+
+def encode(images, model=DEFAULT_MODEL, *, fit: bool = True) -> np.ndarray:
+    """Latents ``(N, D)`` float32 of a picture or a list, in one batch: fitted to each through
+    the renderer (``project.LATENT``) or the encoder's posterior means (``fit=False``)."""
+    with compiling(False):
+        setting = projection.LATENT if fit else projection.GUESS
+        return projection.project(_model(model), _pictures(images), setting).z.float().cpu().numpy()
+
+
+def _fitting(fit: bool):
+    return projection.ProjectSettings() if fit else projection.GUESS
+
+
+def _pictures(images) -> list[torch.Tensor]:
+    return [as_image(x) for x in (images if isinstance(images, (list, tuple)) else [images])]
 
 
 def _latents(z, model) -> torch.Tensor:
@@ -198,21 +215,17 @@ def sample(n: int, model=DEFAULT_MODEL, *, seed: int = 0, temperature: float = 1
 
 
 def interpolate(a, b, model=DEFAULT_MODEL, *, steps: int = 4, segments: int | None = None,
-                keep_all: bool = False, parts: str | None = None) -> list[VectorImage]:
-    """``steps + 2`` frames from ``a`` to ``b`` (endpoints included), each a picture or a latent
-    ``(D,)``, decoded from evenly spaced latents. ``keep_all`` and ``parts`` as in ``decode``
-    (``keep_all`` for ``vector.animated_svg``)."""
+                keep_all: bool = False, parts: str | None = None, fit: bool = True) -> list[VectorImage]:
+    """``steps + 2`` frames from ``a`` to ``b``, ends included, on the model's square canvas.
+
+    Each end is a picture (``project``-ed: fitted unless ``fit=False``), a latent ``(D,)``
+    (decoded) or a projection of one (``project(...).take(i)``). The frames interpolate the
+    two ends' paths (``Projection.between``), and are drawn as ``decode`` says (``keep_all``:
+    the model's own paths, every frame with the same ones)."""
     model = _model(model)
-    za, zb = (_endpoint(x, model) for x in (a, b))
-    return infer.decode(model, infer.lerp_latents(za, zb, steps), segments=segments, keep_all=keep_all,
-                        clean=_parts(parts, keep_all))
-
-
-def _endpoint(x, model) -> torch.Tensor:
-    """A picture or a latent -> ``(D,)``."""
-    if isinstance(x, (np.ndarray, torch.Tensor, Sequence)) and not isinstance(x, str) and np.asarray(x).ndim == 1:
-        return _latents(x, model)[0]
-    return infer.encode(model, [as_image(x)])[0]
+    with compiling(False):
+        pa, pb = (projection.endpoint(model, x, _fitting(fit), segments) for x in (a, b))
+    return pa.between(pb, steps).vectors(model.config.image_size, clean=_parts(parts, keep_all), keep_all=keep_all)
 
 
 # --- models from images: training, fine-tuning, the latent prior and the auxiliary networks ---

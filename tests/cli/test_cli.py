@@ -11,6 +11,8 @@ from click.testing import CliRunner
 from PIL import Image
 
 from im2vec_cli.cli import cli
+from im2vec_cli.cli.generate import MORPH_FRAMES
+from im2vec_cli.vector import rasterize_svg
 from tests.helpers import check_svg, make_tiny_model, png, run
 
 
@@ -128,8 +130,12 @@ def test_sample_and_interpolate(tmp_path, model_dir):
         check_svg(f.read_text(), 32, 32)
     morph = (tmp_path / "i" / "morph.svg").read_text()
     root = ElementTree.fromstring(morph)
-    anims = list(root.iter("{http://www.w3.org/2000/svg}animate"))
-    assert anims and all(len(a.get("values").split(";")) == 11 for a in anims)
+    anims = [g.find("{http://www.w3.org/2000/svg}animate") for g in root.iter("{http://www.w3.org/2000/svg}g")]
+    shown = np.array([a.get("values").split(";") for a in anims]) == "inline"  # (frames, slots)
+    assert shown.shape == (MORPH_FRAMES, 2 * MORPH_FRAMES - 2)  # there and back
+    assert (shown.sum(0) == 1).all() and (shown.sum(1) >= 1).all()  # one frame at a time, every frame shown
+    still = rasterize_svg(morph, 32, 32)  # without SMIL: the first frame, which is frame_0
+    assert np.abs(still - rasterize_svg(frames[0].read_text(), 32, 32)).max() < 1e-6
     np.save(tmp_path / "nan.npy", np.full(16, np.nan, np.float32))
     res = CliRunner().invoke(cli, ["interpolate", a, str(tmp_path / "nan.npy"), "-o", str(tmp_path / "j"),
                                    "--model", model_dir])

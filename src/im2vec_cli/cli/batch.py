@@ -165,17 +165,3 @@ def run_batch(ctx: click.Context, items: list[Item], work: Work, chunk: int = 1)
     if report.exit_code:
         ctx.exit(report.exit_code)
     return report
-
-
-def each(work: Callable[[str, Path | None], None]) -> Work:
-    """Adapt a one-input ``work(item, root)`` to ``run_batch``."""
-
-    def run(group: list[Item]):
-        for item, root in group:
-            try:
-                work(item, root)
-                yield item, None
-            except Im2VecError as exc:
-                yield item, exc
-
-    return run

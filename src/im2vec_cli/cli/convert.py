@@ -9,7 +9,7 @@ import click
 from ..errors import Im2VecError
 from ..options import EFFORTS, MAX_SPECKLE, PARTS, PRESETS, VectorizeOptions
 from .app import EXIT_HELP, cli, starting_up, warn
-from .batch import each, expand_inputs, plan_outputs, refuse_overwrite, run_batch
+from .batch import expand_inputs, plan_outputs, refuse_overwrite, run_batch
 from .options import BYTES, Finite, load_model, model_options, nonempty, parse_segments
 from .streams import load_input_image, read_input, write_output
 
@@ -156,6 +156,9 @@ def _ignored_options(ctx: click.Context) -> list[str]:
     return notes
 
 
+ENCODE_CHUNK = 64  # images encoded (and fitted) in one batch
+
+
 def _load(group, max_pixels: int | None = None):
     """-> the good ``(item, picture)`` of a group of inputs and the bad ``(item, error)``."""
     good, bad = [], []
@@ -228,10 +231,14 @@ def _in_pool(model_name, jobs, threads, device, seed, options, write):
 @click.option("-o", "--output", default="-", show_default=True, callback=nonempty,
               help="JSON lines file or -; a folder with --format npy.")
 @click.option("--format", "fmt", type=click.Choice(["jsonl", "npy"]), default="jsonl", show_default=True)
+@click.option("--fit/--no-fit", default=True, show_default=True,
+              help="Fit each latent to its image through the renderer, or keep the encoder's guess (the posterior "
+                   "mean: faster, coarser).")
 @model_options
 @click.pass_context
-def encode(ctx, inputs, output, fmt, model_name, device, seed):
-    """Encode images to latent vectors (the posterior mean): one JSON line per image, or .npy files."""
+def encode(ctx, inputs, output, fmt, fit, model_name, device, seed):
+    """Encode images to latent vectors: one JSON line per image, or .npy files. Images are
+    encoded ENCODE_CHUNK at a time, in one batch."""
     import io
     import json
 
@@ -253,8 +260,7 @@ def encode(ctx, inputs, output, fmt, model_name, device, seed):
     else:
         refuse_overwrite([output], [item for item, _ in items])
 
-    def work(item, root):
-        z = api.encode(load_input_image(item), model)[0]  # (D,)
+    def write(item, z):
         if fmt == "npy":
             buf = io.BytesIO()
             np.save(buf, z)
@@ -263,8 +269,19 @@ def encode(ctx, inputs, output, fmt, model_name, device, seed):
             lines.append(json.dumps({"file": item, "model": getattr(model, "name", model_name),
                                      "latent": [round(v, 6) for v in z.tolist()]}))
 
+    def work(group):
+        good, bad = _load(group)
+        yield from bad
+        if good:
+            for (item, _), z in zip(good, api.encode([img for _, img in good], model, fit=fit)):
+                try:
+                    write(item, z)
+                    yield item, None
+                except Im2VecError as exc:
+                    yield item, exc
+
     try:
-        run_batch(ctx, items, each(work))
+        run_batch(ctx, items, work, chunk=ENCODE_CHUNK)
     finally:
         if fmt == "jsonl" and lines:
             write_output(output, "\n".join(lines) + "\n")

@@ -70,13 +70,12 @@ def write_set(output: str, stem: str, images, count: int) -> None:
 
 
 def latent_from(model, item: str):
-    """An image file, or a latent from `encode` (.npy, or a .json/.jsonl line) -> ``(D,)``."""
+    """A latent from `encode` (.npy, or a .json/.jsonl line) -> ``(D,)``; ``None`` for an image
+    (read by ``load_input_image``)."""
     import json
 
     import numpy as np
     import torch
-
-    from .. import api
 
     low = item.lower()
     if low.endswith(".npy"):
@@ -91,12 +90,27 @@ def latent_from(model, item: str):
         except (OSError, ValueError, KeyError, TypeError) as exc:
             raise Im2VecError(f"{item}: not a latent JSON line from `im2vec encode` ({exc})") from None
     else:
-        return torch.from_numpy(api.encode(load_input_image(item), model)[0])
+        return None
     if z.numel() != model.config.latent:
         raise Im2VecError(f"{item}: latent has {z.numel()} values, the model expects {model.config.latent}")
     if not torch.isfinite(z).all():
         raise Im2VecError(f"{item}: latent contains NaN or infinite values")
     return z
+
+
+def endpoints(model, items: list[str], fit: bool, segments):
+    """Each of ``items`` (images, or latents from `encode`) as a projection of one; the images
+    are fitted together, in one batch."""
+    from .. import api
+
+    latents = [latent_from(model, item) for item in items]
+    pictures = [load_input_image(item) for item, z in zip(items, latents) if z is None]
+    fitted = iter(range(len(pictures)))
+    proj = api.project(pictures, model, fit=fit, segments=segments) if pictures else None
+    return [proj.take(next(fitted)) if z is None else z for z in latents]
+
+
+MORPH_FRAMES = 24  # frames of morph.svg (at least): each shown for 1/8 s
 
 
 @cli.command(epilog=EXIT_HELP)
@@ -105,29 +119,35 @@ def latent_from(model, item: str):
 @click.option("--steps", type=click.IntRange(0, 1000), default=4, show_default=True, help="In-between frames.")
 @click.option("-o", "--output", default="interpolation", show_default=True, callback=nonempty, help="Output folder.")
 @click.option("--segments", default=None, help="Cubic segments per path (default: the model's).")
-@click.option("--animate", is_flag=True, help="Also write morph.svg, an SMIL animation from A to B (of the model's "
-              "own paths, which every frame shares).")
+@click.option("--animate", is_flag=True, help=f"Also write morph.svg: at least {MORPH_FRAMES} frames of the same "
+              "interpolation, each as clean as the frames, played there and back (SMIL).")
 @click.option("--parts", type=click.Choice(PARTS), default="clean", show_default=True,
               help="Frames: clean outer contours and holes, or the model's own paths.")
+@click.option("--fit/--no-fit", default=True, show_default=True,
+              help="Fit the model's paths to each image through the renderer (about 1 s), or keep the encoder's "
+                   "guess (faster, coarser).")
 @model_options
-def interpolate(a, b, steps, output, segments, animate, parts, model_name, device, seed):
-    """Decode a linear interpolation between A and B (images, or latents from `encode`).
+def interpolate(a, b, steps, output, segments, animate, parts, fit, model_name, device, seed):
+    """Morph from A to B (images, or latents from `encode`): the model's paths of each, fitted
+    to the image, interpolated.
 
     Writes frame_*.svg (endpoints included) and contact.png to the output folder.
     """
     from pathlib import Path
 
     from .. import api
-    from ..vector import animated_svg
+    from ..vector import flipbook_svg
 
     check_set_output(output, steps + 2)
     names = [f"frame_{i:0{len(str(steps + 1))}d}.svg" for i in range(steps + 2)] + ["contact.png", "morph.svg"]
     refuse_overwrite([Path(output) / n for n in names], [a, b])
-    model = load_model(model_name, device, seed)
-    za, zb = latent_from(model, a), latent_from(model, b)
     k = parse_segments(segments)
+    if k == "auto":
+        raise click.BadParameter("auto is for vectorize: every frame of a morph has one count", param_hint="--segments")
+    model = load_model(model_name, device, seed)
+    za, zb = endpoints(model, [a, b], fit, k)
     write_set(output, "frame", api.interpolate(za, zb, model, steps=steps, segments=k, parts=parts), steps + 2)
     if animate:
-        full = api.interpolate(za, zb, model, steps=steps, segments=k, keep_all=True)
-        write_output(Path(output) / "morph.svg", animated_svg(full))
+        many = api.interpolate(za, zb, model, steps=max(steps, MORPH_FRAMES - 2), segments=k, parts=parts)
+        write_output(Path(output) / "morph.svg", flipbook_svg(many))
         click.echo(f"wrote {Path(output) / 'morph.svg'}", err=True)

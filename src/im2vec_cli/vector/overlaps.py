@@ -9,8 +9,8 @@ the nonzero rule, with each hole path reversed, keeps every true hole and fills 
 Which paths are holes is read off the image being vectorised: every orientation of the
 paths (the first one fixed) is rasterised under nonzero, and the variant nearest the image
 in L2 replaces the even-odd shape when it is nearer than the even-odd original. ``vectorize``
-and refinement use it; ``sample`` and ``interpolate`` have no image to read it from and
-write the model's even-odd shapes as they are.
+and refinement use it; ``sample`` and ``interpolate`` have no image to read it from, and
+draw their frames clean instead (``trace.cleaned``).
 
 Frame: ``VectorImage`` pixel frame (``image.py``); the image is the input ``(3, H, W)`` in
 [0, 1] on the same canvas. Contours keep the wrap-around cubic layout when reversed.

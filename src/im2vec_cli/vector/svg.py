@@ -52,28 +52,30 @@ def to_svg(image: VectorImage, decimals: int = 2) -> str:
     return dwg.tostring()
 
 
-def animated_svg(frames: list[VectorImage], seconds: float = 3.0, decimals: int = 2) -> str:
-    """One SVG whose paths morph through ``frames`` with SMIL ``<animate>`` (there and back).
+def flipbook_svg(frames: list[VectorImage], seconds: float = 3.0, decimals: int = 2) -> str:
+    """One SVG that shows ``frames`` in turn, there and back, over ``2 * seconds`` (SMIL).
 
-    All frames must have the same shapes, contours and segment counts (decode with
-    ``keep_all=True`` and a fixed number of segments), so the path data interpolates.
+    Each frame is a group of its own paths shown for its share of the time (``display``
+    animated with ``calcMode="discrete"``), so every picture on screen is one of ``frames``
+    exactly: frames of different paths (clean outlines) play as well as the model's own. A
+    viewer without SMIL shows the first frame.
     """
+    if not frames:
+        raise ValueError("a flipbook needs at least one frame")
     first = frames[0]
-    sig = [[len(c) for c in s.contours] for s in first.shapes]
-    for f in frames:
-        if [[len(c) for c in s.contours] for s in f.shapes] != sig:
-            raise ValueError("frames differ in structure; decode them with keep_all=True and fixed segments")
-    seq = frames + frames[-2:0:-1]  # ping-pong
+    if any((f.width, f.height) != (first.width, first.height) for f in frames):
+        raise ValueError("the frames of a flipbook share one canvas size")
+    seq = list(range(len(frames))) + list(range(len(frames) - 2, 0, -1))  # ping-pong
+    times = ";".join(number_text(j / len(seq), 4) for j in range(len(seq)))
     base = to_svg(first, decimals)
-    out = base[: base.rfind("</svg>")]
-    out = out[: out.find("<path")] if "<path" in out else out
-    parts = [out]
-    for si, shape in enumerate(first.shapes):
-        values = ";".join(" ".join(contour_d(c, decimals) for c in f.shapes[si].contours) for f in seq + [seq[0]])
-        r, g, b = (int(round(v * 255)) for v in shape.color)
-        parts.append(
-            f'<path d="{values.split(";")[0]}" fill="#{r:02x}{g:02x}{b:02x}" fill-rule="{shape.fill_rule}" stroke="none">'
-            f'<animate attributeName="d" dur="{seconds * 2:g}s" repeatCount="indefinite" values="{values}"/></path>'
-        )
+    head = base[: base.find("<path")] if "<path" in base else base[: base.rfind("</svg>")]
+    parts = [head]
+    for i, frame in enumerate(frames):
+        shown = ";".join("inline" if j == i else "none" for j in seq)
+        paths = "".join(f'<path d="{" ".join(contour_d(c, decimals) for c in sh.contours)}" fill="{hex_color(sh.color)}" '
+                        f'fill-rule="{sh.fill_rule}" stroke="none"/>' for sh in frame.shapes if sh.contours)
+        parts.append(f'<g display="{"inline" if i == 0 else "none"}">{paths}<animate attributeName="display" '
+                     f'calcMode="discrete" dur="{seconds * 2:g}s" repeatCount="indefinite" keyTimes="{times}" '
+                     f'values="{shown}"/></g>')
     parts.append("</svg>")
     return "".join(parts)

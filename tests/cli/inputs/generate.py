@@ -52,3 +52,16 @@ def in_interpolate_onto_its_input(d, m):
     (d / "outdir").mkdir()
     src = png(d / "outdir" / "contact.png")
     return ["interpolate", src, png(d / "b.png"), "-o", str(d / "outdir")], None
+
+
+def in_interpolate_segments_auto(d, m):
+    return ["interpolate", png(d / "a.png"), png(d / "b.png"), "--segments", "auto", "-o", str(d / "outdir")], None
+
+
+def in_fit_with_a_value(d, m):
+    return ["interpolate", png(d / "a.png"), png(d / "b.png"), "--fit=yes", "-o", str(d / "outdir")], None
+
+
+def in_encode_no_fit_garbage(d, m):
+    (d / "a.png").write_bytes(b"not a png")
+    return ["encode", str(d / "a.png"), "--no-fit", "-o", str(d / "out.jsonl")], None
