@@ -125,3 +125,17 @@ def test_unreadable_outline_is_counted_not_fatal(tmp_path):
                                     '<path d="M8 8l16 0l0 16l-16 0z"/></svg>')
     res = reconstruction_l2(model, [tmp_path / "e.png"])
     assert "outlines_unread" not in res and res["outlines"] == 1
+
+
+def test_eval_fit_lowers_the_error_and_refuses_what_it_cannot_fit(tmp_path):
+    from pathlib import Path
+
+    files = sorted((Path(__file__).parent / "assets" / "fonts_test").glob("*.png"))[:4]  # test split
+    fonts = from_pretrained("fonts")
+    guess = reconstruction_l2(fonts, files, outlines=False)["recon_l2"]
+    fitted = reconstruction_l2(fonts, files, outlines=False, fit=True)["recon_l2"]
+    assert fitted < 0.5 * guess, (guess, fitted)
+    data = str(files[0].parent)
+    for args, why in ((["--model", "baselines/mnist-imagevae"], "draws pixels"), (["--segments", "auto"], "--fit")):
+        res = CliRunner().invoke(cli, ["eval", "--data", data, "--fit", "--limit", "1", *args])
+        assert res.exit_code == 2 and why in res.output, res.output

@@ -35,20 +35,25 @@ from .files import load_image
 from .frame import fit_square, resize_square
 from .infer import decode, encode, lerp_latents, prior_latents, reconstruct_raster, resolve_prior, vectorize
 from .model.vae import Im2Vec
-from .raster import cubic_at, segment_controls
+from .project import project
+from .raster import compiling, cubic_at, segment_controls
 from .vector import VectorImage, from_svg, rasterize_svg, to_svg
 
 
 def reconstruction_l2(
     model: Im2Vec, files: list[Path], *, segments: int | str | None = None, batch: int = 64, outlines: bool = True,
-    on_skip: Callable[[str], None] | None = None,
+    on_skip: Callable[[str], None] | None = None, fit: bool = False,
 ) -> dict[str, float]:
     """Mean and standard error of the per-image MSE over ``files`` (unreadable files skipped,
     counted in ``images_skipped`` and told to ``on_skip``), the mean paths and segments per
     image, and, for images with their true outline beside them (``name.svg``, as the Fonts
     dataset has), IoU at 4x and the Chamfer distance (px); outlines the SVG reader does not
     take are counted in ``outlines_unread`` (and told to ``on_skip``).
-    For the ImageVAE baseline: the MSE only. ``outlines=False`` skips the outline metrics."""
+    For the ImageVAE baseline: the MSE only. ``outlines=False`` skips the outline metrics.
+    ``fit``: the model's paths fitted to each image (``project.project``, what ``interpolate``
+    draws) instead of the encoder's guess (what ``vectorize --no-refine`` writes)."""
+    if fit and (model.raster_output or segments == "auto"):
+        raise ValueError("fit takes a vector model and a fixed segment count")
     skip = on_skip or (lambda msg: None)
     errs, paths, segs, ious, chamfers, unread, skipped = [], [], [], [], [], 0, 0
     for i in range(0, len(files), batch):
@@ -66,7 +71,7 @@ def reconstruction_l2(
         if model.raster_output:
             errs += [float(((r - img) ** 2).mean()) for r, img in zip(reconstruct_raster(model, imgs), imgs)]
             continue
-        for f, img, vec in zip(names, imgs, vectorize(model, imgs, segments=segments)):
+        for f, img, vec in zip(names, imgs, _reconstructed(model, imgs, segments, fit)):
             h, w = img.shape[1:]
             errs.append(float(((_render(vec, w, h) - img) ** 2).mean()))
             paths.append(vec.num_paths)
@@ -93,6 +98,14 @@ def reconstruction_l2(
     if skipped:
         out["images_skipped"] = skipped
     return out
+
+
+def _reconstructed(model: Im2Vec, images: list[torch.Tensor], segments, fit: bool) -> list[VectorImage]:
+    """The vector reconstructions of a batch: the encoder's guess, or the paths fitted to each image."""
+    if not fit:
+        return vectorize(model, images, segments=segments)
+    with compiling(False):  # eager: a compile per batch shape costs more than the fit
+        return project(model, images, segments=segments).in_pictures(model, images)
 
 
 def mean_stderr(key: str, values: list[float]) -> dict[str, float]:

@@ -35,7 +35,7 @@ from .model.vae import Decoded, Im2Vec
 from .optim import Adam
 from .raster import gaussian_pyramid, pyramid_l2, render_pyramid
 from .trace import cleaned
-from .vector import VectorImage
+from .vector import VectorImage, resolve_overlaps
 
 
 @dataclass(frozen=True)
@@ -103,6 +103,13 @@ class Projection:
             raise ValueError("clean outlines do not keep the model's paths: keep_all needs clean=False")
         out = [to_vector(self.decoded, i, Placement(size, size), keep_all=keep_all) for i in range(len(self))]
         return [cleaned(v) for v in out] if clean else out
+
+
+    def in_pictures(self, model: Im2Vec, images: list[torch.Tensor]) -> list[VectorImage]:
+        """Each item in its picture's pixel frame (placed as ``infer.model_input`` places it), the
+        overlaps of its even-odd shapes resolved against the picture as ``infer.vectorize`` does."""
+        places = [model_input(model, im)[1] for im in images]
+        return [resolve_overlaps(to_vector(self.decoded, i, p), im) for i, (p, im) in enumerate(zip(places, images))]
 
 
 def from_latents(model: Im2Vec, z: torch.Tensor, segments: int | None = None) -> Projection:

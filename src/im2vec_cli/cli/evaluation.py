@@ -64,6 +64,8 @@ def _sample_quality(model, features_dir, data_dir, samples, seed, prior, segment
 @click.option("--samples", type=click.IntRange(1), default=1000, show_default=True, help="Prior samples (generation).")
 @click.option("--pairs", type=click.IntRange(1), default=250, show_default=True, help="Training pairs (interpolation).")
 @click.option("--segments", default=None, help="Cubic segments per path (default: the model's).")
+@click.option("--fit", is_flag=True, help="Reconstruct with the model's paths fitted to each image (what `interpolate` "
+              "draws), not the encoder's guess (what `vectorize --no-refine` writes).")
 @click.option("-o", "--output", default="-", show_default=True, callback=nonempty, help="JSON file or -.")
 @click.option("--markdown", default=None, callback=nonempty, help="Also write the figures as a markdown table to this file.")
 @click.option("--sweep", default=None, metavar="K1-K2",
@@ -76,8 +78,8 @@ def _sample_quality(model, features_dir, data_dir, samples, seed, prior, segment
 @click.option("--prior", type=click.Choice(PRIORS), default="auto", show_default=True,
               help="Where the samples' latents come from (as `sample --prior`).")
 @model_options
-def eval_cmd(data_dir, limit, train_dir, samples, pairs, segments, output, markdown, sweep, plot, features_dir, prior,
-             model_name, device, seed):
+def eval_cmd(data_dir, limit, train_dir, samples, pairs, segments, fit, output, markdown, sweep, plot, features_dir,
+             prior, model_name, device, seed):
     """The paper's metrics for a model, measured on the SVGs it writes (rendered by cairosvg).
 
     Reconstruction L2 (Table 1) on the test images, at each image's size; with --train-data,
@@ -100,14 +102,18 @@ def eval_cmd(data_dir, limit, train_dir, samples, pairs, segments, output, markd
     if plot and not sweep:
         raise click.UsageError("--plot needs --sweep")
     ks = parse_sweep(sweep) if sweep else None
+    k = parse_segments(segments)
+    if fit and k == "auto":
+        raise click.UsageError("--fit fits paths of one segment count: --segments takes a number with it")
     model = load_model(model_name, device, seed, raster_ok=True)
     if ks and model.raster_output:
         raise click.UsageError("--sweep: the ImageVAE baseline has no segments")
-    k = parse_segments(segments)
+    if fit and model.raster_output:
+        raise click.UsageError("--fit: the ImageVAE baseline draws pixels, it has no paths to fit")
     res = {"model": getattr(model, "name", model_name), "arch": model.config.arch}
     skipped = lambda msg: warn(f"skipped {msg}")  # noqa: E731
     files = eval_files(data_dir, limit, seed, on_skip=skipped)
-    res.update(reconstruction_l2(model, files, segments=k, on_skip=skipped))
+    res.update(reconstruction_l2(model, files, segments=k, on_skip=skipped, fit=fit), **({"fit": True} if fit else {}))
     if train_dir:
         train, _ = load_folder(split_dir(train_dir, "train"), model.config.image_size, fit=model.config.fit,
                                on_skip=skipped)
