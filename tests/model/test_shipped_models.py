@@ -54,3 +54,16 @@ def test_quality_on_test_split_subset(name):
 
 def test_default_model_has_a_quality_check():
     assert "fonts" in _with_assets()
+
+
+@pytest.mark.slow  # about 45 s: every model's paths fitted to its 64 test images
+@pytest.mark.parametrize("name", [n for n in _with_assets() if "assets_subset_fitted_recon_l2" in json.loads(
+    (REPO_MODELS / n / "metrics.json").read_text())])
+def test_fitted_quality_on_test_split_subset(name):
+    # the paths fitted to each image (`eval --fit`, what `interpolate` draws) keep the figure of
+    # docs/results/ratios.md, and stay well below the encoder's guess
+    card = json.loads((REPO_MODELS / name / "metrics.json").read_text())
+    files = sorted((ASSETS.parent / card.get("assets_dir", f"{name}_test")).glob("*.png"))
+    res = reconstruction_l2(from_pretrained(name), files, outlines=False, fit=True)
+    assert res["recon_l2"] <= card["assets_subset_fitted_recon_l2"] * 1.1 + 1e-4, res
+    assert res["recon_l2"] < 0.6 * card["assets_subset_recon_l2"], res
