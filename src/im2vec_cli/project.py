@@ -10,9 +10,10 @@ at the model's size, one loss per picture (a picture's fit is its own), in three
 3. the control points (``point_steps``): offsets from the decoded paths, and the colours
    of a learned-colour model.
 
-Each stage keeps each picture's best step. On 12 pairs of glyphs of held-out faces
-(``bench/morphs.py``) the end frames' IoU@4x against the true outlines is 0.908 from the
-guess, 0.932 with the latent fitted, 0.933 with the codes too and 0.968 with the points.
+Each stage keeps each picture's best step. On the 24 glyphs of held-out faces of
+``bench/morphs.py`` the IoU@4x of their clean outlines against the true outlines is 0.913
+from the guess, 0.937 with the latent fitted, 0.944 with the codes too and 0.977 with the
+points.
 
 A ``Projection`` is ``z`` with its paths (``Decoded``: points ``(N, P, 3k, 2)`` in the model's
 square, normalised). Every projection of one model has the same ``P`` paths of ``k``
@@ -42,9 +43,10 @@ from .vector import VectorImage, resolve_overlaps
 class ProjectSettings:
     """The stages of ``project`` (steps 0: the stage is skipped; all 0: the encoder's guess).
 
-    The defaults fit two 64 px glyphs in about 1 s on 2 CPU cores. On the 12 pairs of
-    ``bench/morphs.py``: 20/20/30 steps give end frames IoU@4x 0.966 and 93% of frames with
-    the character's pieces and holes, 30/30/60 give 0.968 and 99%.
+    The defaults fit two 64 px glyphs in about 1 s on 2 CPU cores (``im2vec interpolate`` of
+    two glyphs: 3.3-4.2 s wall with the process start). On the 12 pairs of
+    ``bench/morphs.py`` 20/20/30 steps kept 93% of frames with the character's pieces and
+    holes where 30/30/60 kept 99% (both with the first version of ``trace.outline.mended``).
     """
 
     latent_steps: int = 30
@@ -103,7 +105,6 @@ class Projection:
             raise ValueError("clean outlines do not keep the model's paths: keep_all needs clean=False")
         out = [to_vector(self.decoded, i, Placement(size, size), keep_all=keep_all) for i in range(len(self))]
         return [cleaned(v) for v in out] if clean else out
-
 
     def in_pictures(self, model: Im2Vec, images: list[torch.Tensor]) -> list[VectorImage]:
         """Each item in its picture's pixel frame (placed as ``infer.model_input`` places it), the
