@@ -71,10 +71,7 @@ def fit(model, x: torch.Tensor, params: list[torch.Tensor], make_dec, steps: int
 
 def decode_codes(model, code: torch.Tensor, k: int, like: Decoded) -> Decoded:
     """Per-path codes ``(B, P, C)`` -> ``Decoded`` with the model's path decoder (the LSTM skipped)."""
-    b, p = code.shape[:2]
-    centre = model.centres.to(code.dtype).expand(b, -1, -1).flatten(0, 1)  # (B*P, 2)
-    pts = model.decoder(code.flatten(0, 1), k, centre).view(b, p, 3 * k, 2)  # (B, P, 3k, 2)
-    return Decoded(pts, like.colors, like.depth, like.shape_index, like.fill_rule)
+    return Decoded(model.path_points(code, k), like.colors, like.depth, like.shape_index, like.fill_rule)
 
 
 def main():

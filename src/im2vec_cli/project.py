@@ -164,10 +164,10 @@ def _fit(model: Im2Vec, x: torch.Tensor, s: ProjectSettings, segments: int | Non
         base = model.decode(z, k)
         code = model.codes(z)[0]  # (N, P, C)
     if s.code_steps:
-        code = _adam(model, target, [code], [s.code_lr], lambda c: _with_points(base, _decode_codes(model, c, k)),
+        code = _adam(model, target, [code], [s.code_lr], lambda c: _with_points(base, model.path_points(c, k)),
                      s.code_steps, s.tau)[0]
     with torch.no_grad():
-        points = _decode_codes(model, code, k)  # (N, P, 3k, 2)
+        points = model.path_points(code, k)  # (N, P, 3k, 2)
     colors = base.colors
     if s.point_steps:
         learn = not model.palette.numel()
@@ -177,13 +177,6 @@ def _fit(model: Im2Vec, x: torch.Tensor, s: ProjectSettings, segments: int | Non
                     s.point_steps, s.tau)
         points, colors = points + got[0], got[1].clamp(0, 1) if learn else colors
     return Projection(z, _with_points(base, points, colors))
-
-
-def _decode_codes(model: Im2Vec, code: torch.Tensor, k: int) -> torch.Tensor:
-    """Per-path codes ``(N, P, C)`` -> points ``(N, P, 3k, 2)`` by the path decoder alone."""
-    n, p = code.shape[:2]
-    centre = model.centres.to(code.dtype).expand(n, -1, -1).flatten(0, 1)  # (N*P, 2)
-    return model.decoder(code.flatten(0, 1), k, centre).view(n, p, 3 * k, 2)
 
 
 def _with_points(d: Decoded, points: torch.Tensor, colors: torch.Tensor | None = None) -> Decoded:

@@ -179,25 +179,12 @@ def test_vectorize_tells_its_stages_in_order():
 
 
 def scribbles(seed: int, w: int, h: int) -> np.ndarray:
-    """A phone photo of strokes and circles on paper (bench/hardening.py's scans): warm paper,
-    light falling off as cosines, noise, JPEG 70."""
-    from PIL import ImageDraw, ImageFilter
+    """A phone photo of strokes and circles on paper: bench/hardening.py's scan (warm paper,
+    light falling off as cosines, noise) saved as JPEG 70."""
+    from bench.hardening import scan
 
-    rng = np.random.default_rng(seed)
-    img = Image.new("L", (w, h), 245)
-    d = ImageDraw.Draw(img)
-    for _ in range(int(rng.integers(8, 20))):
-        pts = [tuple(int(v) for v in rng.uniform(20, [w - 20, h - 20])) for _ in range(int(rng.integers(3, 9)))]
-        d.line(pts, fill=int(rng.integers(10, 60)), width=int(rng.integers(1, 6)), joint="curve")
-    for _ in range(int(rng.integers(2, 6))):
-        x, y, r = rng.uniform(40, w - 40), rng.uniform(40, h - 40), rng.uniform(8, 40)
-        d.ellipse((x - r, y - r, x + r, y + r), outline=int(rng.integers(10, 60)), width=int(rng.integers(1, 4)))
-    a = np.asarray(img.filter(ImageFilter.GaussianBlur(0.8)), np.float64)
-    yy, xx = np.mgrid[0:h, 0:w]
-    light = 0.65 + 0.35 * np.cos((xx / w - rng.uniform()) * 2.5) * np.cos((yy / h - rng.uniform()) * 2)
-    a = a * light + rng.normal(0, 6, a.shape)
     buf = io.BytesIO()
-    Image.fromarray(np.stack([a, a * 0.97, a * 0.92], -1).clip(0, 255).astype(np.uint8)).save(buf, "JPEG", quality=70)
+    scan(seed, w, h).save(buf, "JPEG", quality=70)
     return np.asarray(Image.open(buf).convert("RGB"), np.float64) / 255
 
 

@@ -92,23 +92,30 @@ class Im2Vec(nn.Module):
         if self.palette.numel():
             # fixed palette (colour-segmented data): a soft choice among its colours
             color = torch.softmax(self.palette_logits(h), -1) @ self.palette.to(h.dtype)  # (B, P, 3)
-        centre = self.centres.to(z.dtype).expand(b, -1, -1).flatten(0, 1)  # (B*P, 2)
         counts = None
         if isinstance(segments, torch.Tensor):
             counts = segments.to(z.device).long()
             if counts.shape != (b, cfg.paths) or counts.min() < 1:
                 raise ValueError(f"per-path segments must be (B, P) = ({b}, {cfg.paths}) counts >= 1")
+            centre = self.centres.to(z.dtype).expand(b, -1, -1).flatten(0, 1)  # (B*P, 2)
             pts = self._decode_ragged(code.flatten(0, 1), counts.flatten(), centre).view(b, cfg.paths, -1, 2)
         else:
             k = segments or cfg.segments
             if k < 1:
                 raise ValueError(f"segments must be >= 1, got {k}")
-            pts = self.decoder(code.flatten(0, 1), k, centre).view(b, cfg.paths, 3 * k, 2)  # (B, P, 3k, 2)
+            pts = self.path_points(code, k)  # (B, P, 3k, 2)
         if cfg.grouping in ("evenodd", "nonzero"):
             # one shape, all paths under that fill rule: its colour is the mean of the path colours
             return Decoded(pts, color.mean(1, keepdim=True), depth.new_zeros(b, 1),
                            torch.zeros(cfg.paths, dtype=torch.long, device=z.device), cfg.grouping, counts)
         return Decoded(pts, color, depth, None, "nonzero", counts)
+
+    def path_points(self, code: torch.Tensor, k: int) -> torch.Tensor:
+        """Per-path codes ``(B, P, C)`` -> closed paths of ``k`` segments ``(B, P, 3k, 2)`` by the
+        path decoder alone (``decode`` without the LSTM: projection fits the codes directly)."""
+        b, p = code.shape[:2]
+        centre = self.centres.to(code.dtype).expand(b, -1, -1).flatten(0, 1)  # (B*P, 2)
+        return self.decoder(code.flatten(0, 1), k, centre).view(b, p, 3 * k, 2)
 
     def _decode_ragged(self, code: torch.Tensor, counts: torch.Tensor, centre: torch.Tensor) -> torch.Tensor:
         """``code (N, C)``, ``counts (N,)`` -> ``(N, 3K, 2)``, K = max count, padded at anchor 0."""
