@@ -4,7 +4,7 @@ DATA ?= data
 PIP ?= .venv/bin/pip
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: install test test-slow fuzz lint bench bench-cli bench-safety bench-hardening bench-realworld bench-morphs bench-sets bench-vectorize bench-outlines bench-folder results demo data-fonts data-mnist data-emoji data-icons clean
+.PHONY: install test test-slow fuzz lint train-fonts train-mnist train-emoji train-icons bench bench-cli bench-safety bench-hardening bench-realworld bench-morphs bench-sets bench-vectorize bench-outlines bench-folder results demo data-fonts data-mnist data-emoji data-icons clean
 
 install: .venv/.installed
 
@@ -121,6 +121,16 @@ demo: install
 	  .venv/bin/im2vec render out/demo/example.svg -o out/demo/example.png --scale 2 && \
 	  echo "rendered out/demo/example.svg -> out/demo/example.png with im2vec's rasterizer"; \
 	fi
+
+# A training phase of a shipped model (issue 37): at most PHASE_MINUTES (a session ends hard and takes runs/
+# with it) from models/<set>, the last shipped phase, with models/phases/<set>.json; then bench/ship_phase.py
+# ships it into models/<set> with its card when it beats it on the test split: commit models/<set> after.
+# Needs $(DATA)/<set> (make data-<set>). RESUME=1 continues runs/<set>-phase instead of starting it afresh.
+PHASE_MINUTES ?= 72
+train-fonts train-mnist train-emoji train-icons: train-%: install
+	.venv/bin/im2vec train $(DATA)/$* --out runs/$*-phase --config models/phases/$*.json --minutes $(PHASE_MINUTES) \
+	  $(if $(RESUME),--resume,--init models/$* --overwrite)
+	$(PY) bench/ship_phase.py runs/$*-phase --set $* --data $(DATA)
 
 data-fonts: install
 	apt-get update -q && apt-get install -y -q $$(cat ../shared/data/font-packages.txt)

@@ -263,11 +263,11 @@ def test_nonfinite_loss_is_skipped_and_reported(tmp_path, shapes, monkeypatch):
     calls = {"n": 0}
 
     def sometimes_nan(*a, **k):
-        rec, kl, dec = real(*a, **k)
+        rec, kl, dec, mu = real(*a, **k)
         calls["n"] += 1
         if calls["n"] == 3:
             rec = rec * float("nan")
-        return rec, kl, dec
+        return rec, kl, dec, mu
 
     monkeypatch.setattr(tr, "reconstruction_loss", sometimes_nan)
     events = []
@@ -284,7 +284,7 @@ def test_nonfinite_loss_weights_unchanged(tmp_path, shapes, monkeypatch):
     import im2vec_cli.train as tr
 
     real = tr.reconstruction_loss
-    monkeypatch.setattr(tr, "reconstruction_loss", lambda *a, **k: (lambda r: (r[0] * float("inf"), r[1], r[2]))(
+    monkeypatch.setattr(tr, "reconstruction_loss", lambda *a, **k: (lambda r: (r[0] * float("inf"), r[1], r[2], r[3]))(
         real(*a, **k)))
     from im2vec_cli.model.vae import Im2Vec
 

@@ -232,13 +232,14 @@ def interpolate(a, b, model=DEFAULT_MODEL, *, steps: int = 4, segments: int | No
 
 def train(data_dir, run_dir="runs/latest", model_config=None, train_config=None, *, init=None,
           device: str | torch.device = "auto", val_dir=None, resume: bool = False, overwrite: bool = False,
-          epochs: float | None = None, on_event=None) -> Path:
+          epochs: float | None = None, minutes: float | None = None, on_event=None) -> Path:
     """Train a model on a folder of images (``train.train``); returns the exported model folder.
 
     ``model_config`` / ``train_config``: ``ModelConfig`` / ``TrainConfig`` or dicts of their
     fields. ``init`` (a model or its name) fine-tunes: its weights and config, of which only
     ``options.GROWABLE`` fields may differ in ``model_config`` (new paths start as copies).
-    ``resume`` / ``overwrite`` as ``checkpoint.prepare_run_dir`` says. ``on_event`` is called
+    ``resume`` / ``overwrite`` as ``checkpoint.prepare_run_dir`` says; ``minutes`` bounds a phase
+    (``train.train``). ``on_event`` is called
     with each progress event, a typed ``events.Event`` (``DataLoaded``, ``TrainStep``,
     ``Validated``, ...; so are those of ``fit_prior``, ``train_aux`` and ``train_features``)."""
     from .config import ModelConfig, TrainConfig
@@ -262,7 +263,7 @@ def train(data_dir, run_dir="runs/latest", model_config=None, train_config=None,
         mcfg = ModelConfig.from_dict(given)
     dev = device if isinstance(device, torch.device) else resolve_device(device)
     return run_train(data_dir, run_dir, mcfg, tcfg, device=dev, val_dir=val_dir, resume=resume,
-                     overwrite=overwrite, on_event=on_event, epochs=epochs, init_state=init_state)
+                     overwrite=overwrite, on_event=on_event, epochs=epochs, init_state=init_state, minutes=minutes)
 
 
 def _output_folder(output, overwrite: bool, source) -> bool:

@@ -51,7 +51,7 @@ def load_checkpoint(path: str | Path) -> dict:
 
 
 RUN_FILES = ("checkpoint.pt", "metrics.jsonl", "train_config.json", "latent_prior.json", "latent_prior.safetensors",
-             "model", "preview_*.png")  # what a run writes: a new run in its folder starts without them
+             "model", "preview_*.png", "teacher.safetensors")  # what a run writes: a new run in its folder starts without them
 
 
 def prepare_run_dir(run_dir: Path, resume: bool, overwrite: bool, data_dir: str | Path | None = None) -> None:

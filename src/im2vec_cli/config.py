@@ -21,6 +21,7 @@ FORMAT_VERSION = 1
 # path wound the other way inside another cuts a hole, as in font outlines); "layers": one coloured shape
 # per path, composited by depth.
 PYRAMID_MODES = ("blur", "render")  # TrainConfig.pyramid: the coarse levels of the loss (raster.render_pyramid)
+TRAIN_ONLY = ("", "encoder")  # TrainConfig.train_only: every weight, or the encoder's alone (the rest frozen)
 
 
 class JsonConfig:
@@ -141,6 +142,9 @@ class TrainConfig(JsonConfig):
     pyramid: str = "blur"  # coarser loss levels: "blur" (pyramid of the render, as the target's) or "render" (see render_pyramid)
     lr_final: float = 0.1  # cosine decay to lr * lr_final
     ema: float = 0.0  # > 0: keep an exponential moving average of the weights with this decay; val and export use it
+    distill: float = 0.0  # > 0: weight of the encoder's squared distance to the fitted latents (distill.Teacher)
+    distill_images: int = 4096  # training images whose latents the teacher fits (when distill > 0)
+    train_only: str = ""  # TRAIN_ONLY: "encoder" freezes the rest (the decoder the teacher's latents were fitted to)
     seed: int = 0
     val_fraction: float = 0.05
     val_every: int = 250
@@ -151,11 +155,12 @@ class TrainConfig(JsonConfig):
 
     def __post_init__(self):
         """Values a run cannot use are refused here, before any data loads."""
-        for key in ("steps", "batch", "beta_warmup", "lookahead_k", "val_every", "ckpt_every", "preview_every",
+        for key in ("steps", "batch", "beta_warmup", "distill_images", "lookahead_k", "val_every", "ckpt_every", "preview_every",
                     "workers", "log_every"):
             if getattr(self, key) < 1:
                 raise ConfigError(f"TrainConfig.{key} must be >= 1, got {getattr(self, key)}")
-        for key in ("lr", "beta", "grad_clip", "lookahead_alpha", "tau_start", "tau_end", "lr_final", "val_fraction"):
+        for key in ("lr", "beta", "grad_clip", "lookahead_alpha", "tau_start", "tau_end", "lr_final", "val_fraction",
+                    "distill"):
             v = getattr(self, key)
             if not (math.isfinite(v) and v >= 0):
                 raise ConfigError(f"TrainConfig.{key} must be a finite number >= 0, got {v}")
@@ -167,3 +172,5 @@ class TrainConfig(JsonConfig):
             raise ConfigError(f"TrainConfig.pyramid must be one of {PYRAMID_MODES}, got {self.pyramid!r}")
         if not 0.0 <= self.ema < 1.0:
             raise ConfigError(f"TrainConfig.ema must be in [0, 1), got {self.ema}")
+        if self.train_only not in TRAIN_ONLY:
+            raise ConfigError(f"TrainConfig.train_only must be one of {TRAIN_ONLY}, got {self.train_only!r}")

@@ -88,6 +88,20 @@ class Validated(Event, kind="val"):
     time: float = 0.0
 
 
+class Teaching(Event, kind="teach"):
+    """A distillation phase has fitted the latents of ``done`` of its ``images`` teacher images."""
+    done: int
+    images: int
+    time: float = 0.0
+
+
+class TimeUp(Event, kind="time_up"):
+    """The phase's time (``train``'s ``minutes``) ran out: ``step`` of ``steps`` is its last."""
+    step: int
+    steps: int
+    time: float = 0.0
+
+
 class PriorFitting(Event, kind="prior"):
     """The latent prior is being fitted to the latents of ``images`` training images."""
     images: int

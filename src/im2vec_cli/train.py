@@ -8,6 +8,7 @@ Run directory layout::
     RUN/model/            exported model (config.json + model.safetensors)
     RUN/train_config.json
     RUN/latent_prior.*    the latent prior fitted when the run finished (for ``export``)
+    RUN/teacher.safetensors  the fitted latents a distillation phase learns (``distill``)
 
 ``train`` reads top to bottom: distributed set-up, the model, the splits, the ``TrainState``
 (fresh or resumed), then the loop of ``train_step`` and the periodic jobs (``log``,
@@ -32,15 +33,28 @@ from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
 from .checkpoint import load_checkpoint, prepare_run_dir, save_checkpoint
 from .config import ModelConfig, TrainConfig
 from .data.folder import find_split_dirs, load_folder, split_indices
+from .distill import Teacher, distill_loss, freeze, load_or_fit_teacher
 from .errors import DataError, Im2VecError, TrainingError
-from .events import DataLoaded, Event, NonFinite, NoPrior, PriorFitting, Resumed, Skipped, TrainStep, Validated
-from .files import atomic_write, encode_png
+from .events import (
+    DataLoaded,
+    Event,
+    NonFinite,
+    NoPrior,
+    PriorFitting,
+    Resumed,
+    Skipped,
+    Teaching,
+    TimeUp,
+    TrainStep,
+    Validated,
+)
+from .files import atomic_write
 from .model import build_model
 from .model.losses import reconstruction_loss
-from .model.pretrained import save_pretrained, unwrap_model
-from .model.prior import DEFAULT_COMPONENTS, IMAGES_PER_COMPONENT, LatentPrior, fit_prior, posterior_means
-from .model.vae import Im2Vec
+from .model.pretrained import save_pretrained
+from .model.prior import DEFAULT_COMPONENTS, IMAGES_PER_COMPONENT, fit_prior, posterior_means
 from .optim import Lookahead
+from .train_eval import evaluate_l2, preview_grid
 
 MAX_NONFINITE_IN_A_ROW = 20  # skipped steps before training stops with an error
 MIN_IMAGES = 2  # one to train on, one to validate
@@ -57,56 +71,6 @@ def schedule(step: int, tcfg: TrainConfig) -> dict[str, float]:
     beta = tcfg.beta * min(1.0, step / max(1, tcfg.beta_warmup))
     tau = tcfg.tau_start + (tcfg.tau_end - tcfg.tau_start) * frac
     return {"lr": lr, "beta": beta, "tau": tau}
-
-
-@torch.no_grad()
-def evaluate_l2(model: Im2Vec, images: torch.Tensor, segments: int, tau: float, batch: int = 128,
-                supersample: int = 1, pyramid: str = "blur") -> dict[str, float]:
-    """Validation: pyramid L2 and plain MSE (paper Table 1) with ``z = mu``.
-
-    ``images`` uint8 ``(N, 3, S, S)``; the MSE render uses exact "over" compositing, and
-    ``supersample`` and ``pyramid`` as the loss does.
-    """
-    m = unwrap_model(model)
-    was = m.training
-    m.eval()
-    dev = next(m.parameters()).device
-    pyr, mse, n = 0.0, 0.0, 0
-    for i in range(0, len(images), batch):
-        x = images[i : i + batch].to(dev).float() / 255
-        loss, _, dec = reconstruction_loss(m, x, segments, tau, sample=False, supersample=supersample,
-                                           pyramid=pyramid)
-        img = dec if m.raster_output else m.render(dec, tau=tau, composite="over", supersample=supersample)
-        pyr += float(loss) * len(x)
-        mse += float(((img - x) ** 2).mean()) * len(x)
-        n += len(x)
-    m.train(was)
-    return {"val_pyramid_l2": pyr / n, "val_mse": mse / n}
-
-
-def preview_grid(model: Im2Vec, images: torch.Tensor, segments: int, tau: float, scale: int = 2) -> bytes:
-    """PNG rows of input | reconstruction | reconstruction with control points (anchors red;
-    the ImageVAE baseline has none)."""
-    from PIL import Image, ImageDraw
-
-    m = unwrap_model(model)
-    with torch.no_grad():
-        x = images.float() / 255
-        dec, _, _ = m(x.to(next(m.parameters()).device), segments, sample=False)
-        rec = (dec if m.raster_output else m.render(dec, tau=tau, composite="over")).cpu()
-    s = m.config.image_size * scale
-    sheet = Image.new("RGB", (3 * s, len(x) * s), "white")
-    for r in range(len(x)):
-        for c, img in enumerate((x[r], rec[r], rec[r])):
-            tile = Image.fromarray((img.permute(1, 2, 0).clamp(0, 1) * 255).byte().numpy()).resize((s, s), Image.NEAREST)
-            if c == 2 and not m.raster_output:
-                draw = ImageDraw.Draw(tile)
-                for path in dec.points[r].cpu():
-                    for j, (px, py) in enumerate(path.tolist()):
-                        col = (220, 30, 30) if j % 3 == 0 else (30, 90, 220)
-                        draw.ellipse([px * s - 1.5, py * s - 1.5, px * s + 1.5, py * s + 1.5], fill=col)
-            sheet.paste(tile, (c * s, r * s))
-    return encode_png(sheet)
 
 
 def setup_distributed(device: torch.device) -> tuple[torch.device, int, int]:
@@ -155,16 +119,19 @@ def load_splits(data_dir: str | Path | None, val_dir: str | Path | None, model_c
 @dataclass
 class TrainState:
     """Everything a run resumes from: the model, the optimiser, the EMA copy (rank 0), the
-    batch generator and the step. ``save`` writes it atomically; ``load`` restores it exactly."""
+    batch generator, the step and a distillation phase's ``Teacher`` (kept in its own file).
+    ``save`` writes it atomically; ``load`` restores it exactly."""
 
     model: torch.nn.Module
     opt: Lookahead
     ema: AveragedModel | None
     gen: torch.Generator
     step: int = 0
+    teacher: Teacher | None = None
 
     @classmethod
     def create(cls, model: torch.nn.Module, cfg: TrainConfig, rank: int) -> TrainState:
+        freeze(model, cfg.train_only)
         opt = Lookahead(torch.optim.RAdam(model.parameters(), lr=cfg.lr), cfg.lookahead_k, cfg.lookahead_alpha)
         ema = None
         if cfg.ema > 0 and rank == 0:  # ema.module: the averaged copy (its first update copies the weights);
@@ -216,17 +183,25 @@ def train_step(state: TrainState, ddp_model: torch.nn.Module, train_x: torch.Ten
     """One optimiser step on a random batch at a random k (sec. 3.5). A non-finite loss or
     gradient skips the update, so the weights never see a NaN or inf.
 
-    Returns the step's figures: loss, pyramid L2, KL, k, lr, tau, gradient norm, finite."""
+    With a ``teacher`` the batch is drawn from its images and ``cfg.distill`` times
+    ``distill_loss`` joins the loss. Returns the step's figures: loss, pyramid L2, KL,
+    (distill,) k, lr, tau, gradient norm, finite."""
     sch = schedule(state.step, cfg)
     for g in state.opt.param_groups:
         g["lr"] = sch["lr"]
     device = next(state.model.parameters()).device
-    idx = torch.randint(len(train_x), (cfg.batch,), generator=state.gen)
+    if state.teacher is None:
+        idx, z_fit = torch.randint(len(train_x), (cfg.batch,), generator=state.gen), None
+    else:
+        idx, z_fit = state.teacher.draw(cfg.batch, state.gen)
     k = int(torch.randint(model_cfg.min_segments, model_cfg.max_segments + 1, (1,), generator=state.gen))
     x = train_x[idx].to(device).float() / 255  # (B, 3, S, S)
-    rec, kl, _ = reconstruction_loss(ddp_model, x, k, sch["tau"], sample=True, supersample=cfg.supersample,
-                                     pyramid=cfg.pyramid)
+    rec, kl, _, mu = reconstruction_loss(ddp_model, x, k, sch["tau"], sample=True, supersample=cfg.supersample,
+                                         pyramid=cfg.pyramid)
     loss = rec + sch["beta"] * kl
+    taught = {} if z_fit is None else {"distill": distill_loss(mu, z_fit)}
+    if taught:
+        loss = loss + cfg.distill * taught["distill"]
     state.opt.zero_grad()
     loss.backward()
     gnorm = torch.nn.utils.clip_grad_norm_(state.model.parameters(), cfg.grad_clip)
@@ -239,7 +214,8 @@ def train_step(state: TrainState, ddp_model: torch.nn.Module, train_x: torch.Ten
             state.ema.update_parameters(state.model)
     else:
         state.opt.zero_grad()
-    return {"loss": loss.item(), "pyramid_l2": rec.item(), "kl": kl.item(), "k": k, "lr": sch["lr"],
+    return {"loss": loss.item(), "pyramid_l2": rec.item(), "kl": kl.item(), **{n: v.item() for n, v in taught.items()},
+            "k": k, "lr": sch["lr"],
             "tau": sch["tau"], "grad_norm": float(gnorm), "finite": finite, "images": len(x) * world}
 
 
@@ -293,6 +269,7 @@ def train(
     images: torch.Tensor | None = None,
     epochs: float | None = None,
     init_state: dict[str, torch.Tensor] | None = None,
+    minutes: float | None = None,
 ) -> Path:
     """Train an Im2Vec model (or the ImageVAE baseline, ``model_cfg.arch``); returns the
     exported model folder ``RUN/model``.
@@ -302,10 +279,13 @@ def train(
     ``(N, 3, S, S)``) bypasses the folder loading, for tests. ``epochs`` overrides
     ``train_cfg.steps`` by passes over the training images. ``init_state`` (a state dict of
     the same config) starts from trained weights with a fresh optimiser: fine-tuning.
+    ``minutes`` bounds the call (a training phase within a session): past it, the run stops
+    at the step it reached (``TimeUp``), checkpoints and exports; ``resume`` goes on.
     A ``run_dir`` that holds a run is continued with ``resume`` or started over (its run
     files removed, the folder's other files kept) with ``overwrite``; else it is refused.
     """
     emit = on_event or (lambda e: None)
+    deadline = math.inf if minutes is None else time.monotonic() + 60 * minutes
     run_dir = Path(run_dir)
     device, rank, world = setup_distributed(device)
     main = rank == 0
@@ -318,39 +298,44 @@ def train(
         train_cfg = dataclasses.replace(train_cfg, steps=max(1, round(epochs * len(train_x) / train_cfg.batch)))
     emit(DataLoaded(len(train_x), len(val_x), train_cfg.steps))
     state, ckpt = TrainState.create(model, train_cfg, rank), run_dir / "checkpoint.pt"
+    log = _Log(run_dir / "metrics.jsonl", emit, main)
     if resume:
         state.load(ckpt, model_cfg, rank)
         emit(Resumed(state.step))
+    if train_cfg.distill > 0:  # every rank fits the same teacher (seeded); rank 0 keeps it for a resume
+        state.teacher = load_or_fit_teacher(run_dir, model, train_x, train_cfg.distill_images, train_cfg.seed,
+                                            lambda done, n: log(Teaching(done, n, time.time())), save=main)
     ddp_model = model if world == 1 else torch.nn.parallel.DistributedDataParallel(  # some heads are idle by
         model, device_ids=[device.index] if device.type == "cuda" else None, find_unused_parameters=True)  # config
     if main:
         atomic_write(run_dir / "train_config.json", train_cfg.to_json())
-    _loop(state, ddp_model, train_x, val_x, model_cfg, train_cfg, run_dir, _Log(run_dir / "metrics.jsonl", emit, main),
-          rank, world)
+    _loop(state, ddp_model, train_x, val_x, model_cfg, train_cfg, run_dir, log, rank, world, deadline)
     if main:
-        if len(train_x) >= PRIOR_MIN_IMAGES:
-            emit(PriorFitting(len(train_x)))
-            prior = fit_run_prior(state.exported, train_x, str(data_dir or ""), state.step, train_cfg.seed)
-            prior.save(run_dir)  # beside checkpoint.pt, for `export`
-            state.exported.latent_prior = prior
-        else:
-            emit(NoPrior(len(train_x), PRIOR_MIN_IMAGES))
-        save_pretrained(state.exported, run_dir / "model")
+        _export(state, train_x, str(data_dir or ""), run_dir, train_cfg.seed, emit)
     if world > 1:
         dist.barrier()
     return run_dir / "model"
 
 
-def fit_run_prior(model: torch.nn.Module, train_x: torch.Tensor, data: str, step: int, seed: int) -> LatentPrior:
-    """The ex-post latent density of a trained model (``model.prior``): a Gaussian mixture fitted
-    to the posterior means of its training images, ``DEFAULT_COMPONENTS`` of them or fewer
-    for a small set."""
-    was = model.training
-    model.eval()
-    mu = posterior_means(model, train_x)  # (N, D)
-    model.train(was)
-    k = max(1, min(DEFAULT_COMPONENTS, len(train_x) // IMAGES_PER_COMPONENT))
-    return fit_prior(mu, k, seed=seed, data=data, step=step)
+def _export(state: TrainState, train_x: torch.Tensor, data: str, run_dir: Path, seed: int,
+            emit: Callable[[Event], None]) -> None:
+    """``RUN/model``: the exported weights with their latent prior (``model.prior``, also kept
+    beside ``checkpoint.pt`` for ``export``): a Gaussian mixture fitted to the posterior means of
+    the training images, ``DEFAULT_COMPONENTS`` components or fewer for a small set (none for
+    fewer than ``PRIOR_MIN_IMAGES``)."""
+    model = state.exported
+    if len(train_x) >= PRIOR_MIN_IMAGES:
+        emit(PriorFitting(len(train_x)))
+        was = model.training
+        model.eval()
+        mu = posterior_means(model, train_x)  # (N, D)
+        model.train(was)
+        k = max(1, min(DEFAULT_COMPONENTS, len(train_x) // IMAGES_PER_COMPONENT))
+        model.latent_prior = fit_prior(mu, k, seed=seed, data=data, step=state.step)
+        model.latent_prior.save(run_dir)
+    else:
+        emit(NoPrior(len(train_x), PRIOR_MIN_IMAGES))
+    save_pretrained(model, run_dir / "model")
 
 
 def _build(model_cfg: ModelConfig, seed: int, device: torch.device, init_state: dict | None) -> torch.nn.Module:
@@ -365,15 +350,17 @@ def _build(model_cfg: ModelConfig, seed: int, device: torch.device, init_state: 
 
 
 def _loop(state: TrainState, ddp_model, train_x, val_x, model_cfg: ModelConfig, cfg: TrainConfig, run_dir: Path,
-          log: _Log, rank: int, world: int) -> None:
-    """Steps until ``cfg.steps`` with the periodic jobs; Ctrl-C (or SIGTERM via the CLI)
-    checkpoints, then re-raises."""
+          log: _Log, rank: int, world: int, deadline: float = math.inf) -> None:
+    """Steps until ``cfg.steps`` (or the ``deadline``, ``time.monotonic()``: that step is the
+    last) with the periodic jobs; Ctrl-C (or SIGTERM via the CLI) checkpoints, then re-raises."""
     ckpt, main, bad_run = run_dir / "checkpoint.pt", rank == 0, 0  # bad_run: non-finite steps in a row
     state.model.train()
+    log.t_last = time.perf_counter()  # the throughput counts training, not the set-up (a teacher's fit)
     try:
         while state.step < cfg.steps:
             out = train_step(state, ddp_model, train_x, model_cfg, cfg, world)
             step = state.step
+            last = step if _past(deadline, world, state.model) else cfg.steps
             bad_run = 0 if out["finite"] else bad_run + 1
             if not out["finite"]:
                 log(NonFinite(step, out["loss"], out["grad_norm"], bad_run, time.time()))
@@ -382,15 +369,30 @@ def _loop(state: TrainState, ddp_model, train_x, val_x, model_cfg: ModelConfig, 
                         f"the loss or gradient was not finite for {bad_run} steps in a row (up to step {step}); "
                         f"the last good checkpoint is {ckpt}; try a lower --lr")
             log.n_last += out["images"]
-            if _due(step, cfg.log_every, cfg.steps):
+            if _due(step, cfg.log_every, last):
                 log.train(step, out)
-            if main and _due(step, cfg.val_every, cfg.steps):
+            if main and _due(step, cfg.val_every, last):
                 log(validate(state, val_x, model_cfg, cfg))
-            if main and _due(step, cfg.preview_every, cfg.steps):
+            if main and _due(step, cfg.preview_every, last):
                 atomic_write(run_dir / f"preview_{step:07d}.png",
                              preview_grid(state.exported, val_x[:8], model_cfg.segments, cfg.tau_end))
-            if _due(step, cfg.ckpt_every, cfg.steps):
+            if _due(step, cfg.ckpt_every, last):
                 state.save(ckpt, model_cfg, cfg, rank, world)
+            if last < cfg.steps:
+                log(TimeUp(step, cfg.steps, time.time()))
+                break
     except KeyboardInterrupt:
         state.save(ckpt, model_cfg, cfg, rank, world)
         raise
+
+
+def _past(deadline: float, world: int, model: torch.nn.Module) -> bool:
+    """Whether the ``deadline`` has passed; under DDP, on any rank (so that all stop at one step)."""
+    if deadline == math.inf:
+        return False
+    past = time.monotonic() > deadline
+    if world > 1:
+        flag = torch.tensor([float(past)], device=next(model.parameters()).device)
+        dist.all_reduce(flag, op=dist.ReduceOp.MAX)
+        past = bool(flag.item())
+    return past

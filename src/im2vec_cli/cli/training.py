@@ -19,6 +19,8 @@ from ..events import (
     PriorFitting,
     Resumed,
     Skipped,
+    Teaching,
+    TimeUp,
     TrainStep,
     Validated,
 )
@@ -82,6 +84,10 @@ class _Progress:
                 self.bar = progress(total=steps, desc="train", unit="step")
             case Resumed(step=step):
                 self.bar.update(step)
+            case Teaching(done=done, images=n) if done == n or done % 1024 == 0:
+                click.echo(f"distillation: fitted the latents of {done}/{n} training images", err=True)
+            case TimeUp(step=step, steps=steps):
+                warn(f"--minutes ran out at step {step} of {steps}: the model is exported as it is (--resume goes on)")
             case TrainStep(step=step, figures=f, img_per_s=speed):
                 self.bar.set_postfix(loss=f"{f['loss']:.4f}", img_s=f"{speed:.0f}", k=f["k"])
                 self.bar.update(step - self.bar.n)
@@ -127,9 +133,11 @@ class _Progress:
               help="Fine-tune: start from this model's weights (a shipped name or a model folder), with a "
                    "fresh optimiser and schedule; the model options come from it, but --paths and --grouping "
                    "may change (new paths start as copies of the model's).")
+@click.option("--minutes", type=Finite(0, min_open=True), default=None,
+              help="A phase's time: past it, stop at the step reached, checkpoint and export (--resume goes on).")
 @device_option
 def train(data_dir, run_dir, val_dir, config_file, arch, size, paths, latent, grouping, batch, steps, epochs, lr,
-          beta, seed, workers, resume, overwrite, init_model, device):
+          beta, seed, workers, resume, overwrite, init_model, minutes, device):
     """Train an Im2Vec model on a folder of images (PNG/JPG, searched recursively).
 
     A folder made by `im2vec data` (with train/ and val/) uses its own split. Unreadable
@@ -165,7 +173,7 @@ def train(data_dir, run_dir, val_dir, config_file, arch, size, paths, latent, gr
     report = _Progress(dev)
     try:
         out = api.train(data_dir, run_dir, model_cfg, train_cfg, init=start, device=dev, val_dir=val_dir,
-                        resume=resume, overwrite=overwrite, on_event=report, epochs=epochs)
+                        resume=resume, overwrite=overwrite, on_event=report, epochs=epochs, minutes=minutes)
     finally:
         report.close()
     if os.environ.get("RANK", "0") == "0":

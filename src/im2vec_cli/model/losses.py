@@ -22,18 +22,18 @@ def reconstruction_loss(model, images: torch.Tensor, segments: int, tau: float, 
     the edges a user's antialiased render shows. ``pyramid`` picks the coarser levels
     (``render_pyramid``'s ``coarse``).
 
-    Returns ``(pyramid L2, KL, decoded)``: ``Decoded`` paths, or for the ImageVAE baseline its
-    ``(B, 3, S, S)`` raster, scored by the same pyramid loss.
+    Returns ``(pyramid L2, KL, decoded, mu)``: ``Decoded`` paths, or for the ImageVAE baseline
+    its ``(B, 3, S, S)`` raster, scored by the same pyramid loss; ``mu (B, D)`` the encoder's mean.
     """
     m = unwrap_model(model)
     cfg = m.config
     dec, mu, logvar = model(images, segments, sample=sample)
     target = gaussian_pyramid(images, cfg.levels)
     if m.raster_output:
-        return pyramid_l2(gaussian_pyramid(dec, cfg.levels), target), kl_divergence(mu, logvar), dec
+        return pyramid_l2(gaussian_pyramid(dec, cfg.levels), target), kl_divergence(mu, logvar), dec, mu
     renders = render_pyramid(
         dec.points, dec.colors, dec.depth, size=cfg.image_size, levels=cfg.levels, tau=tau,
         fill_rule=dec.fill_rule, shape_index=dec.shape_index, samples=cfg.samples, composite="soft",
         supersample=supersample, coarse=pyramid,
     )
-    return pyramid_l2(renders, target), kl_divergence(mu, logvar), dec
+    return pyramid_l2(renders, target), kl_divergence(mu, logvar), dec, mu

@@ -1,0 +1,146 @@
+"""Ship a training phase into models/<set> when it beats the shipped model (issue 37).
+
+A phase (``make train-<set>``) fine-tunes the shipped model for at most ``--minutes``; this
+script then exports the run's checkpoint as the shipped model is stored (fp16 when it is),
+measures it and the shipped model on the same images:
+
+- the test split (a seeded subset of ``--limit`` images of DATA/<set>/test): reconstruction L2
+  of the SVG ``vectorize --no-refine`` writes, and the outline figures where the set has them;
+- the 64 images of tests/assets/<set>_test (the figure ``tests/model/test_shipped_models.py``
+  checks), amortised and fitted (``eval --fit``);
+
+and ships the phase only when its test-split L2 is lower: the model files replace those in
+models/<set>; metrics.json takes the new figures (the replaced ones kept under
+``before_phase_<n>``) and a ``phases`` entry; README.md gets a section with the command, the
+config, the code commit and the validation curve. Commit models/<set> afterwards.
+
+    python bench/ship_phase.py RUN --set fonts --data DATA [--limit 1000] [--dry-run]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "src"))
+
+from im2vec_cli.evaluate import eval_files, reconstruction_l2  # noqa: E402
+from im2vec_cli.files import atomic_write, replace_folder  # noqa: E402
+from im2vec_cli.model.pretrained import export_checkpoint, from_pretrained, stored_half  # noqa: E402
+
+MODEL_FILES = ("config.json", "model.safetensors", "latent_prior.json", "latent_prior.safetensors")
+CURVE_ROWS = 12  # validation rows of the card's curve (evenly spread, the last one always)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("run")
+    ap.add_argument("--set", required=True, dest="name")
+    ap.add_argument("--data", required=True)
+    ap.add_argument("--limit", type=int, default=1000)
+    ap.add_argument("--dry-run", action="store_true", help="Measure and tell; change nothing.")
+    args = ap.parse_args()
+    run, shipped = Path(args.run), ROOT / "models" / args.name
+    scratch = run / "ship"
+    if scratch.exists():
+        shutil.rmtree(scratch)
+    _, step = export_checkpoint(run, scratch, half=stored_half(shipped))
+    test = eval_files(Path(args.data) / args.name, args.limit, 0)
+    assets = sorted((ROOT / "tests" / "assets" / f"{args.name}_test").glob("*.png"))
+    before, after = measure(shipped, test, assets), measure(scratch, test, assets)
+    for tag, m in (("shipped", before), ("phase", after)):
+        print(f"{tag:8s} test {m['test_recon_l2']:.5f} ± {m['test_recon_l2_stderr']:.5f}  assets "
+              f"{m['assets_recon_l2']:.5f}  fitted {m['assets_fitted_recon_l2']:.5f}", flush=True)
+    better = after["test_recon_l2"] < before["test_recon_l2"]
+    print(("ships" if better else "does not beat the shipped model") + f" (step {step}, {len(test)} test images)")
+    if better and not args.dry_run:
+        ship(run, scratch, shipped, step, len(test), before, after)
+        print(f"shipped into {shipped}: commit it")
+
+
+def measure(model_dir: Path, test: list[Path], assets: list[Path]) -> dict[str, float]:
+    m = from_pretrained(model_dir)
+    t = reconstruction_l2(m, test)
+    out = {"test_recon_l2": t["recon_l2"], "test_recon_l2_stderr": t["recon_l2_stderr"]}
+    out.update({f"test_{k}": t[k] for k in ("outline_iou_4x", "chamfer_px") if k in t})
+    out["assets_recon_l2"] = reconstruction_l2(m, assets, outlines=False)["recon_l2"]
+    out["assets_fitted_recon_l2"] = reconstruction_l2(m, assets, outlines=False, fit=True)["recon_l2"]
+    return out
+
+
+def ship(run: Path, scratch: Path, shipped: Path, step: int, n_test: int, before: dict, after: dict) -> None:
+    metrics = json.loads((shipped / "metrics.json").read_text())
+    phase = len(metrics.get("phases", [])) + 1
+    events = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
+    cfg = json.loads((run / "train_config.json").read_text())
+    entry = {"phase": phase, "date": time.strftime("%Y-%m-%d", time.gmtime()), "commit": _commit(),
+             "steps": step, "of_steps": cfg["steps"], "minutes": round(_minutes(events), 1),
+             "test_images": n_test, "before": before, "after": after}
+    key = f"test_split_{n_test}_recon_l2"
+    replaced = {k: metrics[k] for k in (key, key + "_stderr", "assets_subset_recon_l2",
+                                         "assets_subset_fitted_recon_l2", "outline_iou_4x", "chamfer_px")
+                if k in metrics}
+    metrics.update({key: after["test_recon_l2"], key + "_stderr": after["test_recon_l2_stderr"],
+                    "assets_subset_recon_l2": after["assets_recon_l2"],
+                    "assets_subset_fitted_recon_l2": after["assets_fitted_recon_l2"],
+                    f"before_phase_{phase}": replaced, "phases": [*metrics.get("phases", []), entry]})
+    for k in ("outline_iou_4x", "chamfer_px"):
+        if f"test_{k}" in after:
+            metrics[k] = after[f"test_{k}"]
+    card = (shipped / "README.md").read_text().rstrip() + "\n\n" + card_section(entry, cfg, events) + "\n"
+
+    def write(tmp: Path) -> None:
+        for f in shipped.iterdir():  # the card's own files (README, metrics, segments.json, ...)
+            if f.is_file() and f.name not in MODEL_FILES:
+                shutil.copy2(f, tmp / f.name)
+        for name in MODEL_FILES:
+            if (scratch / name).is_file():
+                shutil.copy2(scratch / name, tmp / name)
+        atomic_write(tmp / "metrics.json", json.dumps(metrics, indent=1) + "\n")
+        atomic_write(tmp / "README.md", card)
+
+    replace_folder(shipped, write)
+
+
+def card_section(entry: dict, cfg: dict, events: list[dict]) -> str:
+    b, a = entry["before"], entry["after"]
+    lines = [f"## Phase {entry['phase']} ({entry['date']}, code at {entry['commit']}): the shipped weights",
+             "", f"`make train-<set>` (`im2vec train DATA --init <the shipped model> --config models/phases/<set>.json "
+             f"--minutes ...`, then `python bench/ship_phase.py`): {entry['steps']} of {entry['of_steps']} steps in "
+             f"{entry['minutes']} min on this machine, with", "",
+             "```json", json.dumps({k: v for k, v in cfg.items() if k not in ("class_name", "format_version")}),
+             "```", "", "| figure | before | after |", "|---|---|---|",
+             f"| test split, {entry['test_images']} images: recon L2 | {b['test_recon_l2']:.5f} ± "
+             f"{b['test_recon_l2_stderr']:.5f} | {a['test_recon_l2']:.5f} ± {a['test_recon_l2_stderr']:.5f} |"]
+    for k, label in (("test_outline_iou_4x", "IoU@4x"), ("test_chamfer_px", "Chamfer (px)")):
+        if k in a:
+            lines.append(f"| test split: {label} | {b[k]:.4f} | {a[k]:.4f} |")
+    lines += [f"| 64 test-split assets: recon L2 | {b['assets_recon_l2']:.5f} | {a['assets_recon_l2']:.5f} |",
+              f"| 64 assets, fitted (`eval --fit`) | {b['assets_fitted_recon_l2']:.5f} | "
+              f"{a['assets_fitted_recon_l2']:.5f} |", "", "Validation (the run's `metrics.jsonl`):", "",
+              "| step | min | val pyramid L2 | val MSE |", "|---|---|---|---|"]
+    val = [e for e in events if e["event"] == "val"]
+    t0 = min(e["time"] for e in events if "time" in e)
+    for e in val[:: max(1, len(val) // CURVE_ROWS)][: CURVE_ROWS - 1] + val[-1:]:
+        lines.append(f"| {e['step']} | {(e['time'] - t0) / 60:.0f} | {e['val_pyramid_l2']:.4f} | {e['val_mse']:.4f} |")
+    return "\n".join(lines)
+
+
+def _minutes(events: list[dict]) -> float:
+    times = [e["time"] for e in events if "time" in e]
+    return (max(times) - min(times)) / 60 if times else 0.0
+
+
+def _commit() -> str:
+    out = subprocess.run(["git", "-C", str(ROOT), "describe", "--always", "--dirty"], capture_output=True, text=True)
+    return out.stdout.strip() or "unknown"
+
+
+if __name__ == "__main__":
+    main()
