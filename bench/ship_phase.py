@@ -9,7 +9,7 @@ measures it and the shipped model on the same images:
 - the 64 images of tests/assets/<set>_test (the figure ``tests/model/test_shipped_models.py``
   checks), amortised and fitted (``eval --fit``);
 
-and ships the phase only when its test-split L2 is lower: the model files replace those in
+and ships the phase only when its test-split L2 is lower by ``--margin`` (1%) at least: the model files replace those in
 models/<set>; metrics.json takes the new figures (the replaced ones kept under
 ``before_phase_<n>``) and a ``phases`` entry; README.md gets a section with the command, the
 config, the code commit and the validation curve. Commit models/<set> afterwards.
@@ -44,6 +44,7 @@ def main():
     ap.add_argument("--set", required=True, dest="name")
     ap.add_argument("--data", required=True)
     ap.add_argument("--limit", type=int, default=1000)
+    ap.add_argument("--margin", type=float, default=0.01, help="Relative improvement a phase must make to ship.")
     ap.add_argument("--dry-run", action="store_true", help="Measure and tell; change nothing.")
     args = ap.parse_args()
     run, shipped = Path(args.run), ROOT / "models" / args.name
@@ -57,7 +58,7 @@ def main():
     for tag, m in (("shipped", before), ("phase", after)):
         print(f"{tag:8s} test {m['test_recon_l2']:.5f} ± {m['test_recon_l2_stderr']:.5f}  assets "
               f"{m['assets_recon_l2']:.5f}  fitted {m['assets_fitted_recon_l2']:.5f}", flush=True)
-    better = after["test_recon_l2"] < before["test_recon_l2"]
+    better = after["test_recon_l2"] < (1 - args.margin) * before["test_recon_l2"]
     print(("ships" if better else "does not beat the shipped model") + f" (step {step}, {len(test)} test images)")
     if better and not args.dry_run:
         ship(run, scratch, shipped, step, len(test), before, after)
@@ -68,7 +69,7 @@ def measure(model_dir: Path, test: list[Path], assets: list[Path]) -> dict[str, 
     m = from_pretrained(model_dir)
     t = reconstruction_l2(m, test)
     out = {"test_recon_l2": t["recon_l2"], "test_recon_l2_stderr": t["recon_l2_stderr"]}
-    out.update({f"test_{k}": t[k] for k in ("outline_iou_4x", "chamfer_px") if k in t})
+    out.update({f"test_{k}": t[k] for k in ("outline_iou", "chamfer_px") if k in t})
     out["assets_recon_l2"] = reconstruction_l2(m, assets, outlines=False)["recon_l2"]
     out["assets_fitted_recon_l2"] = reconstruction_l2(m, assets, outlines=False, fit=True)["recon_l2"]
     return out
@@ -76,7 +77,7 @@ def measure(model_dir: Path, test: list[Path], assets: list[Path]) -> dict[str, 
 
 def ship(run: Path, scratch: Path, shipped: Path, step: int, n_test: int, before: dict, after: dict) -> None:
     metrics = json.loads((shipped / "metrics.json").read_text())
-    phase = len(metrics.get("phases", [])) + 1
+    phase = metrics.get("earlier_phases", 0) + len(metrics.get("phases", [])) + 1  # earlier: before this script
     events = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
     cfg = json.loads((run / "train_config.json").read_text())
     entry = {"phase": phase, "date": time.strftime("%Y-%m-%d", time.gmtime()), "commit": _commit(),
@@ -86,13 +87,14 @@ def ship(run: Path, scratch: Path, shipped: Path, step: int, n_test: int, before
     replaced = {k: metrics[k] for k in (key, key + "_stderr", "assets_subset_recon_l2",
                                          "assets_subset_fitted_recon_l2", "outline_iou_4x", "chamfer_px")
                 if k in metrics}
+    metrics["step"] = metrics.get("step", 0) + step
     metrics.update({key: after["test_recon_l2"], key + "_stderr": after["test_recon_l2_stderr"],
                     "assets_subset_recon_l2": after["assets_recon_l2"],
                     "assets_subset_fitted_recon_l2": after["assets_fitted_recon_l2"],
                     f"before_phase_{phase}": replaced, "phases": [*metrics.get("phases", []), entry]})
-    for k in ("outline_iou_4x", "chamfer_px"):
-        if f"test_{k}" in after:
-            metrics[k] = after[f"test_{k}"]
+    for k, test_key in (("outline_iou_4x", "test_outline_iou"), ("chamfer_px", "test_chamfer_px")):
+        if test_key in after:
+            metrics[k] = after[test_key]
     card = (shipped / "README.md").read_text().rstrip() + "\n\n" + card_section(entry, cfg, events) + "\n"
 
     def write(tmp: Path) -> None:
@@ -118,7 +120,7 @@ def card_section(entry: dict, cfg: dict, events: list[dict]) -> str:
              "```", "", "| figure | before | after |", "|---|---|---|",
              f"| test split, {entry['test_images']} images: recon L2 | {b['test_recon_l2']:.5f} ± "
              f"{b['test_recon_l2_stderr']:.5f} | {a['test_recon_l2']:.5f} ± {a['test_recon_l2_stderr']:.5f} |"]
-    for k, label in (("test_outline_iou_4x", "IoU@4x"), ("test_chamfer_px", "Chamfer (px)")):
+    for k, label in (("test_outline_iou", "IoU@4x"), ("test_chamfer_px", "Chamfer (px)")):
         if k in a:
             lines.append(f"| test split: {label} | {b[k]:.4f} | {a[k]:.4f} |")
     lines += [f"| 64 test-split assets: recon L2 | {b['assets_recon_l2']:.5f} | {a['assets_recon_l2']:.5f} |",
@@ -127,7 +129,8 @@ def card_section(entry: dict, cfg: dict, events: list[dict]) -> str:
               "| step | min | val pyramid L2 | val MSE |", "|---|---|---|---|"]
     val = [e for e in events if e["event"] == "val"]
     t0 = min(e["time"] for e in events if "time" in e)
-    for e in val[:: max(1, len(val) // CURVE_ROWS)][: CURVE_ROWS - 1] + val[-1:]:
+    rows = sorted({round(i * (len(val) - 1) / (CURVE_ROWS - 1)) for i in range(CURVE_ROWS)}) if val else []
+    for e in (val[i] for i in rows):
         lines.append(f"| {e['step']} | {(e['time'] - t0) / 60:.0f} | {e['val_pyramid_l2']:.4f} | {e['val_mse']:.4f} |")
     return "\n".join(lines)
 

@@ -209,6 +209,7 @@ def write_markdown(results, sweeps, skipped, args, total_s, reused: int = 0, sam
     ]
     L += _table1(results) + _table2(results, args) + _samples(samples or {}) + _outlines(results) + (_sweeps(sweeps, args) if sweeps else [])
     L += _fonts_ablation()
+    L += _phases()
     L += _provenance({**results, **{"sample quality: " + k: v for k, v in (samples or {}).items()}}, sweeps, skipped)
     (ROOT / "docs" / "RESULTS.md").write_text("\n".join(L) + "\n")
     print(f"wrote {ROOT / 'docs' / 'RESULTS.md'}", file=sys.stderr)
@@ -385,6 +386,15 @@ def _fonts_ablation() -> list[str]:
             "`python bench/fonts_ablation.py --steps 150 --markdown docs/results/fonts-ablation.md` (its docstring",
             "defines each row): the shipped `fonts` model's output with one stage after another replaced by a",
             "per-glyph optimisation through our renderer, scored like Table 1.", "", table.read_text().rstrip()]
+
+
+def _phases() -> list[str]:
+    """docs/results/phases.md: the training phases tried on a shipped model (``make train-<set>``,
+    ``bench/ship_phase.py``), with the figures ``ship_phase`` printed for each."""
+    table = OUT / "phases.md"
+    if not table.is_file():
+        return []
+    return ["", *["#" + line if line.startswith("# ") else line for line in table.read_text().rstrip().splitlines()]]
 
 
 def _provenance(results, sweeps, skipped) -> list[str]:

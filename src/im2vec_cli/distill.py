@@ -2,7 +2,7 @@
 
 The encoder's guess ``z = mu`` draws held-out glyphs with 12x the raster baseline's error,
 where the latent fitted by ``project.LATENT`` (30 Adam steps through the renderer from that
-guess) draws them with 4.3x (docs/results/fonts-ablation.md): an amortisation gap (Cremer et
+guess) draws them with 3.9x (docs/results/fonts-ablation.md): an amortisation gap (Cremer et
 al. 2018), not a decoder that cannot draw them. A training phase with
 ``TrainConfig.distill > 0`` closes it:
 

@@ -1,7 +1,7 @@
 """Projection: the model's paths fitted to pictures (semi-amortised inference, Kim et al. 2018).
 
 The encoder's guess ``z = mu`` is only where a fit starts: on held-out glyphs its paths have
-13x the raster baseline's error (docs/results/fonts-ablation.md). ``project`` fits a batch of
+12x the raster baseline's error (docs/results/fonts-ablation.md). ``project`` fits a batch of
 pictures through our renderer, with Adam on the L2 of the soft render against each picture
 at the model's size, one loss per picture (a picture's fit is its own), in three stages:
 
