@@ -99,8 +99,11 @@ def test_ctrl_c_in_a_real_process_leaves_only_complete_svgs(tmp_path, model_dir,
     for i in range(n):
         glyph_like(32 + i % 3).save(d / f"g{i:04d}.png")
     out = tmp_path / "out"
+    # SIGINT at its default in the child: a shell's background job (`cmd &`, e.g. a CI script run
+    # that way) starts with it ignored, and Python then keeps ignoring it, as a background job should
     proc = subprocess.Popen(EXE + ["vectorize", str(d), "-o", str(out), "--model", model_dir, "--jobs", jobs],
-                            stderr=subprocess.PIPE, text=True)
+                            stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.time() + 240
     while time.time() < deadline and not list(out.glob("*.svg")) and proc.poll() is None:
         time.sleep(0.05)
