@@ -25,11 +25,11 @@ from pathlib import Path
 
 import torch
 
+from .checkpoint import TEACHER_FILE
 from .errors import Im2VecError
 from .files import atomic_write
-from .project import LATENT, project
+from .project import LATENT, project_frames
 
-TEACHER_FILE = "teacher.safetensors"
 TEACHER_BATCH = 64  # pictures fitted at once
 
 __all__ = ["TEACHER_FILE", "Teacher", "distill_loss", "fit_teacher", "freeze", "load_or_fit_teacher"]
@@ -70,13 +70,14 @@ def fit_teacher(model: torch.nn.Module, train_x: torch.Tensor, images: int, seed
     ``train_x``, uint8 ``(N, 3, S, S)``; all of them when there are fewer), in batches."""
     gen = torch.Generator().manual_seed(seed)
     index = torch.randperm(len(train_x), generator=gen)[:images].sort().values
+    dev = next(model.parameters()).device
     was = model.training
     model.eval()
     zs = []
     try:
         for i in range(0, len(index), TEACHER_BATCH):
-            batch = train_x[index[i : i + TEACHER_BATCH]].float() / 255  # (b, 3, S, S)
-            zs.append(project(model, list(batch), LATENT).z.detach().cpu())
+            batch = train_x[index[i : i + TEACHER_BATCH]].to(dev).float() / 255  # (b, 3, S, S): the model's frame
+            zs.append(project_frames(model, batch, LATENT).z.detach().cpu())
             if on_progress is not None:
                 on_progress(min(i + TEACHER_BATCH, len(index)), len(index))
     finally:

@@ -141,7 +141,15 @@ def project(model: Im2Vec, images: list[torch.Tensor], settings: ProjectSettings
     """Pictures ``(3, H_i, W_i)`` in [0, 1] fitted as the module says, in one batch (each
     placed in the model's square as the model was trained: ``infer.model_input``)."""
     dev = next(model.parameters()).device
-    x = torch.stack([model_input(model, im)[0] for im in images]).to(dev)  # (N, 3, S, S)
+    return project_frames(model, torch.stack([model_input(model, im)[0] for im in images]).to(dev), settings,
+                          segments)
+
+
+def project_frames(model: Im2Vec, x: torch.Tensor, settings: ProjectSettings = ProjectSettings(),
+                   segments: int | None = None) -> Projection:
+    """``project`` of pictures already in the model's square, ``x (N, 3, S, S)`` in [0, 1] on
+    the model's device (training images: ``distill.fit_teacher``). The weights are left as
+    they were, ``requires_grad`` included."""
     req = [p.requires_grad for p in model.parameters()]
     for p in model.parameters():
         p.requires_grad_(False)
