@@ -1,6 +1,7 @@
 """Distillation phases (``distill``): the encoder learns the latents ``project`` fits; and
 phases bounded in time (``train(minutes=...)``)."""
 
+import dataclasses
 import json
 
 import pytest
@@ -143,3 +144,55 @@ def test_the_model_built_fresh_is_untouched_by_freeze():
     assert {n.split(".")[0] for n, p in m.named_parameters() if p.requires_grad} == {"encoder"}
     freeze(m, "")
     assert all(p.requires_grad for p in m.parameters())
+
+
+def test_distilling_an_imagevae_is_refused_before_the_run_folder_changes(tmp_path, shapes):
+    """``--arch imagevae`` has no paths to fit: one error, and the run already there is kept."""
+    run = tmp_path / "run"
+    train(None, run, MODEL, fast_cfg(steps=2), images=shapes)
+    before = {p: p.read_bytes() for p in run.rglob("*") if p.is_file()}
+    vae = dataclasses.replace(MODEL, arch="imagevae")
+    with pytest.raises(Im2VecError, match="imagevae has none"):
+        train(None, run, vae, fast_cfg(steps=2, distill=1.0), images=shapes, overwrite=True)
+    assert {p: p.read_bytes() for p in run.rglob("*") if p.is_file()} == before
+
+
+def _ddp_teacher(rank, world, model_dir, images, port, out):
+    """A DDP rank (gloo) that fits its share of the teacher, and asks ``_past`` off and on a logging step."""
+    import torch.distributed as dist
+
+    import im2vec_cli.distill as distill
+    from im2vec_cli.train import _past
+
+    dist.init_process_group("gloo", init_method=f"tcp://127.0.0.1:{port}", rank=rank, world_size=world)
+    try:
+        torch.set_num_threads(1)
+        distill.TEACHER_BATCH = 4  # 3 batches of 4: rank 0 fits two, rank 1 one
+        model = load_pretrained(model_dir)
+        counted = []
+        teacher = fit_teacher(model, images, 12, seed=3, on_progress=lambda d, n: counted.append((d, n)),
+                              rank=rank, world=world)
+        past = rank == 1  # only rank 1's deadline has passed: every rank must stop, at a logging step only
+        at = [_past(-1.0 if past else 1e18, step, 5, world, model) for step in (3, 5)]
+        torch.save({"index": teacher.index, "z": teacher.z, "counted": counted, "past": at}, out / f"{rank}.pt")
+    finally:
+        dist.destroy_process_group()
+
+
+def test_ddp_ranks_share_the_teachers_fit_and_gather_the_same_teacher(tmp_path, trained, shapes, monkeypatch):
+    import socket
+
+    import im2vec_cli.distill as distill
+
+    monkeypatch.setattr(distill, "TEACHER_BATCH", 4)
+    alone = fit_teacher(load_pretrained(trained), shapes[:20], 12, seed=3)
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    torch.multiprocessing.spawn(_ddp_teacher, args=(2, str(trained), shapes[:20], port, tmp_path), nprocs=2)
+    for rank, share in ((0, 8), (1, 4)):
+        got = torch.load(tmp_path / f"{rank}.pt", weights_only=True)
+        assert torch.equal(got["index"], alone.index)
+        assert torch.allclose(got["z"], alone.z, atol=1e-5)  # the same batches, fitted on two processes
+        assert got["counted"][-1] == (share, share)  # each rank fitted its own share only
+        assert got["past"] == [False, True]  # not asked at step 3; at step 5 rank 1's deadline stops both

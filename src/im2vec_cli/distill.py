@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import torch
+import torch.distributed as dist
 
 from .checkpoint import TEACHER_FILE
 from .errors import Im2VecError
@@ -65,38 +66,48 @@ class Teacher:
 
 
 def fit_teacher(model: torch.nn.Module, train_x: torch.Tensor, images: int, seed: int,
-                on_progress: Callable[[int, int], None] | None = None) -> Teacher:
+                on_progress: Callable[[int, int], None] | None = None, rank: int = 0, world: int = 1) -> Teacher:
     """The latents ``project.LATENT`` fits to ``images`` training images (a seeded subset of
-    ``train_x``, uint8 ``(N, 3, S, S)``; all of them when there are fewer), in batches."""
+    ``train_x``, uint8 ``(N, 3, S, S)``; all of them when there are fewer), ``TEACHER_BATCH`` at
+    a time. Under DDP (``world`` > 1) rank ``r`` fits batches ``r, r + world, ...`` and the ranks
+    gather the whole teacher, the same batches as one process fits (``on_progress`` counts its own)."""
     gen = torch.Generator().manual_seed(seed)
     index = torch.randperm(len(train_x), generator=gen)[:images].sort().values
+    batches = list(torch.split(index, TEACHER_BATCH))[rank::world]
     dev = next(model.parameters()).device
     was = model.training
     model.eval()
     zs = []
     try:
-        for i in range(0, len(index), TEACHER_BATCH):
-            batch = train_x[index[i : i + TEACHER_BATCH]].to(dev).float() / 255  # (b, 3, S, S): the model's frame
+        for i, rows in enumerate(batches):
+            batch = train_x[rows].to(dev).float() / 255  # (b, 3, S, S): the model's frame
             zs.append(project_frames(model, batch, LATENT).z.detach().cpu())
             if on_progress is not None:
-                on_progress(min(i + TEACHER_BATCH, len(index)), len(index))
+                on_progress(sum(len(b) for b in batches[: i + 1]), sum(len(b) for b in batches))
     finally:
         model.train(was)
+    if world > 1:
+        shares: list = [None] * world
+        dist.all_gather_object(shares, zs)  # shares[r]: rank r's batches, in order
+        zs = [shares[i % world][i // world] for i in range(sum(len(s) for s in shares))]
     return Teacher(index, torch.cat(zs))
 
 
 def load_or_fit_teacher(run_dir: Path, model: torch.nn.Module, train_x: torch.Tensor, images: int, seed: int,
-                        on_progress: Callable[[int, int], None] | None = None, save: bool = True) -> Teacher:
-    """``RUN/teacher.safetensors`` when it is there (a resumed run), else ``fit_teacher`` (saved
-    there with ``save``)."""
+                        on_progress: Callable[[int, int], None] | None = None, rank: int = 0,
+                        world: int = 1) -> Teacher:
+    """``RUN/teacher.safetensors`` when it is there (a resumed run), else ``fit_teacher`` (the
+    ranks share the fit; rank 0 saves it there)."""
     path = Path(run_dir) / TEACHER_FILE
+    if world > 1:
+        dist.barrier()  # rank 0 has prepared the run folder: every rank sees the same files
     if path.is_file():
         teacher = Teacher.load(path)
         if len(teacher.index) == 0 or int(teacher.index.max()) >= len(train_x):
             raise Im2VecError(f"{path}: its images are not this run's training images")
         return teacher
-    teacher = fit_teacher(model, train_x, images, seed, on_progress)
-    if save:
+    teacher = fit_teacher(model, train_x, images, seed, on_progress, rank, world)
+    if rank == 0:
         teacher.save(path)
     return teacher
 

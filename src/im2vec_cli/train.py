@@ -10,9 +10,8 @@ Run directory layout::
     RUN/latent_prior.*    the latent prior fitted when the run finished (for ``export``)
     RUN/teacher.safetensors  the fitted latents a distillation phase learns (``distill``)
 
-``train`` reads top to bottom: distributed set-up, the model, the splits, the ``TrainState``
-(fresh or resumed), then the loop of ``train_step`` and the periodic jobs (``log``,
-``validate``, ``preview``, ``TrainState.save``).
+``train`` reads top to bottom: distributed set-up, the model, the splits, the ``TrainState`` (fresh
+or resumed), then the loop of ``train_step`` and the periodic jobs (log, validate, preview, save).
 """
 
 from __future__ import annotations
@@ -131,7 +130,6 @@ class TrainState:
 
     @classmethod
     def create(cls, model: torch.nn.Module, cfg: TrainConfig, rank: int) -> TrainState:
-        freeze(model, cfg.train_only)
         opt = Lookahead(torch.optim.RAdam(model.parameters(), lr=cfg.lr), cfg.lookahead_k, cfg.lookahead_alpha)
         ema = None
         if cfg.ema > 0 and rank == 0:  # ema.module: the averaged copy (its first update copies the weights);
@@ -289,9 +287,9 @@ def train(
     run_dir = Path(run_dir)
     device, rank, world = setup_distributed(device)
     main = rank == 0
+    model = _build(model_cfg, train_cfg, device, init_state)  # first: a bad config fails before any file changes
     if main:
         prepare_run_dir(run_dir, resume, overwrite, data_dir)
-    model = _build(model_cfg, train_cfg.seed, device, init_state)  # first: a bad config fails before the data loads
     train_x, val_x = load_splits(data_dir, val_dir, model_cfg, train_cfg, images,
                                  lambda msg: emit(Skipped(msg)) if main else None)
     if epochs:
@@ -302,9 +300,9 @@ def train(
     if resume:
         state.load(ckpt, model_cfg, rank)
         emit(Resumed(state.step))
-    if train_cfg.distill > 0:  # every rank fits the same teacher (seeded); rank 0 keeps it for a resume
+    if train_cfg.distill > 0:  # the ranks fit shares of the teacher and gather it; rank 0 keeps it for a resume
         state.teacher = load_or_fit_teacher(run_dir, model, train_x, train_cfg.distill_images, train_cfg.seed,
-                                            lambda done, n: log(Teaching(done, n, time.time())), save=main)
+                                            lambda done, n: log(Teaching(done, n, time.time())), rank, world)
     ddp_model = model if world == 1 else torch.nn.parallel.DistributedDataParallel(  # some heads are idle by
         model, device_ids=[device.index] if device.type == "cuda" else None, find_unused_parameters=True)  # config
     if main:
@@ -338,14 +336,18 @@ def _export(state: TrainState, train_x: torch.Tensor, data: str, run_dir: Path, 
     save_pretrained(model, run_dir / "model")
 
 
-def _build(model_cfg: ModelConfig, seed: int, device: torch.device, init_state: dict | None) -> torch.nn.Module:
-    torch.manual_seed(seed)
+def _build(model_cfg: ModelConfig, cfg: TrainConfig, device: torch.device, init_state: dict | None) -> torch.nn.Module:
+    """The model to train, its weights frozen as ``cfg.train_only`` says."""
+    if cfg.distill > 0 and model_cfg.arch != "im2vec":
+        raise Im2VecError(f"distillation (distill > 0) fits the paths of an im2vec model; --arch {model_cfg.arch} has none")
+    torch.manual_seed(cfg.seed)
     try:
         model = build_model(model_cfg).to(device)
     except ValueError as exc:
         raise Im2VecError(f"model config: {exc}") from None
     if init_state is not None:
         model.load_state_dict(init_state)  # copies into the parameters, casting fp16 storage
+    freeze(model, cfg.train_only)
     return model
 
 
@@ -360,7 +362,7 @@ def _loop(state: TrainState, ddp_model, train_x, val_x, model_cfg: ModelConfig, 
         while state.step < cfg.steps:
             out = train_step(state, ddp_model, train_x, model_cfg, cfg, world)
             step = state.step
-            last = step if _past(deadline, world, state.model) else cfg.steps
+            last = step if _past(deadline, step, cfg.log_every, world, state.model) else cfg.steps
             bad_run = 0 if out["finite"] else bad_run + 1
             if not out["finite"]:
                 log(NonFinite(step, out["loss"], out["grad_norm"], bad_run, time.time()))
@@ -386,9 +388,9 @@ def _loop(state: TrainState, ddp_model, train_x, val_x, model_cfg: ModelConfig, 
         raise
 
 
-def _past(deadline: float, world: int, model: torch.nn.Module) -> bool:
-    """Whether the ``deadline`` has passed; under DDP, on any rank (so that all stop at one step)."""
-    if deadline == math.inf:
+def _past(deadline: float, step: int, every: int, world: int, model: torch.nn.Module) -> bool:
+    """Whether the ``deadline`` has passed; under DDP, on any rank, asked at logging steps only."""
+    if deadline == math.inf or (world > 1 and step % every):
         return False
     past = time.monotonic() > deadline
     if world > 1:

@@ -119,6 +119,7 @@ CASES = {
     "train config: model section not an object": (train.in_config_model_not_object, "error"),
     "train config: segments 0": (train.in_config_segments_zero, "error"),
     "train config: negative lr": (train.in_config_lr_negative, "error"),
+    "train config: distillation of an imagevae": (train.in_config_distill_imagevae, "error"),
 }
 
 

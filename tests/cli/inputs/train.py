@@ -30,3 +30,7 @@ def in_config_segments_zero(d, m):
 
 def in_config_lr_negative(d, m):
     return _config(d, '{"train": {"lr": -1}}')
+
+
+def in_config_distill_imagevae(d, m):
+    return _config(d, '{"model": {"arch": "imagevae"}, "train": {"distill": 1.0}}')
