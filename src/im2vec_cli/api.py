@@ -196,17 +196,18 @@ def decode(z, model=DEFAULT_MODEL, *, segments: int | None = None, keep_all: boo
                         clean=_parts(parts, keep_all))
 
 
-def prior_latents(n: int, model=DEFAULT_MODEL, *, seed: int = 0, temperature: float = 1.0,
+def prior_latents(n: int, model=DEFAULT_MODEL, *, seed: int = 0, temperature: float | None = None,
                   prior: str = "auto") -> np.ndarray:
     """``n`` latents ``(n, D)`` float32, the same for the same ``seed``.
 
     ``prior``: ``"fitted"`` draws from the density fitted to the training set's latents that
     the model folder stores (``model.prior``), ``"normal"`` from N(0, I), ``"auto"`` the
-    first when the model has one. ``temperature`` scales the standard deviations."""
+    first when the model has one. ``temperature`` scales the standard deviations (``None``:
+    the one the fitted prior stores, 1 for N(0, I))."""
     return infer.prior_latents(_model(model), n, seed=seed, temperature=temperature, prior=prior).numpy()
 
 
-def sample(n: int, model=DEFAULT_MODEL, *, seed: int = 0, temperature: float = 1.0, prior: str = "auto",
+def sample(n: int, model=DEFAULT_MODEL, *, seed: int = 0, temperature: float | None = None, prior: str = "auto",
            segments: int | None = None, parts: str = "clean") -> list[VectorImage]:
     """``n`` new graphics: ``prior_latents`` decoded (``parts`` as in ``decode``)."""
     model = _model(model)

@@ -33,7 +33,16 @@ from .data.folder import list_images, split_dir
 from .errors import DataError, Im2VecError, InputError
 from .files import load_image
 from .frame import fit_square, resize_square
-from .infer import decode, encode, lerp_latents, prior_latents, reconstruct_raster, resolve_prior, vectorize
+from .infer import (
+    decode,
+    encode,
+    lerp_latents,
+    prior_latents,
+    reconstruct_raster,
+    resolve_prior,
+    sample_temperature,
+    vectorize,
+)
 from .model.vae import Im2Vec
 from .project import project
 from .raster import compiling, cubic_at, segment_controls
@@ -333,7 +342,7 @@ def confident_share(probs: torch.Tensor) -> float:
 
 
 def sample_quality(model, net, pictures: list[torch.Tensor], *, samples: int = 1000, seed: int = 0,
-                   prior: str = "auto", temperature: float = 1.0, segments: int | None = None) -> dict:
+                   prior: str = "auto", temperature: float | None = None, segments: int | None = None) -> dict:
     """Precision and recall of ``samples`` decoded prior samples (rendered by cairosvg from the
     SVGs ``sample`` writes) against test ``pictures`` (``(3, H, W)`` each, of one size), in the
     feature space of ``net`` (``model.features.FeatureNet``); for a classifier also the share of
@@ -356,7 +365,7 @@ def sample_quality(model, net, pictures: list[torch.Tensor], *, samples: int = 1
             fake = torch.stack([fit_square(resize_square(x, max(h, w))[:, :h, :w], size, fit) for x in fake])
         fake_f, fake_p = features_of(net, fake)
         out = {**precision_recall(real_f, fake_f), "samples": samples, "test_images": len(test),
-               "prior": resolve_prior(model, which)}
+               "prior": resolve_prior(model, which), "temperature": sample_temperature(model, which, temperature)}
         if fake_p is not None:
             out["confident"] = confident_share(fake_p)
             out["confident_test"] = confident_share(real_p)

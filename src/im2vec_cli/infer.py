@@ -170,15 +170,26 @@ def resolve_prior(model, prior: str = "auto") -> str:
     return "fitted" if prior != "normal" and fitted else "normal"
 
 
-def prior_latents(model, n: int, *, seed: int = 0, temperature: float = 1.0, prior: str = "auto") -> torch.Tensor:
+def prior_latents(model, n: int, *, seed: int = 0, temperature: float | None = None,
+                  prior: str = "auto") -> torch.Tensor:
     """``n`` latents ``(n, D)`` float32 drawn with their own generator seeded by ``seed``: from
     ``model.latent_prior`` (``"fitted"``, or ``"auto"`` when the model has one) or N(0, I)
-    (``"normal"``), standard deviations scaled by ``temperature``."""
+    (``"normal"``), standard deviations scaled by ``temperature`` (``None``: the fitted prior's
+    stored one, 1 for N(0, I); ``sample_temperature``)."""
     if n < 1:
         raise ValueError(f"n must be >= 1, got {n}")
+    t = sample_temperature(model, prior, temperature)
     if resolve_prior(model, prior) == "fitted":
-        return model.latent_prior.sample(n, seed=seed, temperature=temperature)
-    return torch.randn(n, model.config.latent, generator=torch.Generator().manual_seed(seed)) * temperature
+        return model.latent_prior.sample(n, seed=seed, temperature=t)
+    return torch.randn(n, model.config.latent, generator=torch.Generator().manual_seed(seed)) * t
+
+
+def sample_temperature(model, prior: str = "auto", temperature: float | None = None) -> float:
+    """The temperature ``prior_latents`` draws with: ``temperature``, or when ``None`` the one the
+    fitted prior stores (``LatentPriorConfig.temperature``), 1 for N(0, I)."""
+    if temperature is not None:
+        return float(temperature)
+    return model.latent_prior.config.temperature if resolve_prior(model, prior) == "fitted" else 1.0
 
 
 def lerp_latents(za: torch.Tensor, zb: torch.Tensor, steps: int) -> torch.Tensor:

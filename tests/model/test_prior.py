@@ -101,6 +101,37 @@ def test_a_model_with_a_stored_prior_samples_from_it(prior_model, tmp_path):
     assert outs[0] == direct
 
 
+def test_the_prior_stores_the_temperature_sample_draws_with(prior_model, tmp_path):
+    """``LatentPriorConfig.temperature`` (bench/prior_temperature.py writes it) is what ``sample``
+    and ``prior_latents`` draw with unless told; N(0, I) keeps 1; a bad one is refused on load."""
+    import dataclasses
+
+    from im2vec_cli.infer import sample_temperature
+    from im2vec_cli.model.prior import PRIOR_CONFIG, LatentPriorConfig
+
+    cold = tmp_path / "cold"
+    shutil.copytree(prior_model, cold)
+    cfg = LatentPriorConfig.load(cold / PRIOR_CONFIG)
+    assert cfg.temperature == 1.0  # as fitted
+    (cold / PRIOR_CONFIG).write_text(dataclasses.replace(cfg, temperature=0.5).to_json())
+    m, warm = iv.load_model(str(cold), "cpu"), iv.load_model(str(prior_model), "cpu")
+    assert sample_temperature(m) == 0.5 and sample_temperature(m, "normal") == 1.0 and sample_temperature(m, "auto", 0.8) == 0.8
+    z = iv.prior_latents(400, m, seed=4)
+    assert np.array_equal(z, m.latent_prior.sample(400, seed=4, temperature=0.5).numpy())
+    assert np.array_equal(iv.prior_latents(400, m, seed=4, temperature=1.0), iv.prior_latents(400, warm, seed=4))
+    spread = lambda a: float(torch.cdist(torch.from_numpy(a), m.latent_prior.means).amin(1).mean())  # noqa: E731
+    assert spread(z) == pytest.approx(0.5 * spread(iv.prior_latents(400, warm, seed=4)), rel=0.02)  # to the modes
+    assert np.array_equal(iv.prior_latents(50, m, seed=4, prior="normal"), iv.prior_latents(50, warm, seed=4, prior="normal"))
+    out = tmp_path / "s"  # the CLI's default is the stored temperature, --temperature overrides it
+    assert run(["sample", "--n", "2", "--seed", "3", "--model", str(cold), "-o", str(out)]).exit_code == 0
+    assert [p.read_text() for p in sorted(out.glob("*.svg"))] == [v.to_svg() for v in iv.sample(2, m, seed=3)]
+    assert [v.to_svg() for v in iv.sample(2, m, seed=3, temperature=1.0)] == [v.to_svg() for v in iv.sample(2, warm, seed=3)]
+    for bad in (-0.1, 5.0, float("nan")):
+        (cold / PRIOR_CONFIG).write_text(json.dumps({**cfg.to_dict(), "temperature": bad}))
+        with pytest.raises(ModelError, match="unreadable latent prior.*temperature"):
+            LatentPrior.load(cold)
+
+
 def test_fitted_prior_refused_when_missing(model):
     m, _ = model
     with pytest.raises(ModelError, match="no fitted latent prior"):

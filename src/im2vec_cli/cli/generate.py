@@ -17,8 +17,9 @@ from .streams import load_input_image, make_folder, write_output
 @click.option("-o", "--output", default="samples", show_default=True, callback=nonempty,
               help="Output folder (- with --n 1: the SVG to stdout).")
 @click.option("--segments", default=None, help="Cubic segments per path (default: the model's).")
-@click.option("--temperature", type=Finite(0), default=1.0, show_default=True,
-              help="Scale of the prior's standard deviations (0: the fitted prior's component means).")
+@click.option("--temperature", type=Finite(0), default=None,
+              help="Scale of the prior's standard deviations (0: the fitted prior's component means; default: "
+                   "the one the fitted prior stores, 1 for N(0, I)).")
 @click.option("--prior", type=click.Choice(PRIORS), default="auto", show_default=True,
               help="fitted: the density fitted to the training set's latents that the model stores; normal: "
                    "N(0, I); auto: fitted when the model has one.")

@@ -12,7 +12,10 @@ trained, and stored beside the weights:
     latent_prior.json          LatentPriorConfig: components, latent size, how it was fitted
 
 ``temperature`` scales every component's standard deviation (T = 1: the fitted density;
-T = 0: the component means), as it scales N(0, I) for ``prior="normal"``.
+T = 0: the component means), as it scales N(0, I) for ``prior="normal"``. A prior stores the
+temperature ``sample`` uses by default (``LatentPriorConfig.temperature``: 1 as fitted; a lower
+one chosen on the validation split by ``bench/prior_temperature.py`` trades recall for precision,
+the truncation of Brock et al. 2019).
 """
 
 from __future__ import annotations
@@ -46,6 +49,11 @@ class LatentPriorConfig(JsonConfig):
     seed: int = 0
     step: int = -1  # the training step of the weights it was fitted to (-1: not from a run)
     log_likelihood: float = 0.0  # mean per image, of the fitted latents (nats)
+    temperature: float = 1.0  # what ``sample`` draws with unless told (chosen on the validation split)
+
+    def __post_init__(self):
+        if not 0 <= self.temperature <= 4:  # also refuses NaN
+            raise ValueError(f"temperature must be in [0, 4], got {self.temperature}")
 
 
 class LatentPrior:
@@ -66,8 +74,10 @@ class LatentPrior:
     def latent(self) -> int:
         return self.means.shape[1]
 
-    def sample(self, n: int, *, seed: int = 0, temperature: float = 1.0) -> torch.Tensor:
-        """``n`` latents ``(n, D)`` float32, the same for the same ``seed`` (its own generator)."""
+    def sample(self, n: int, *, seed: int = 0, temperature: float | None = None) -> torch.Tensor:
+        """``n`` latents ``(n, D)`` float32, the same for the same ``seed`` (its own generator);
+        ``temperature`` ``None``: the stored one (``config.temperature``)."""
+        temperature = self.config.temperature if temperature is None else temperature
         g = torch.Generator().manual_seed(seed)
         comp = torch.multinomial(self.weights, n, replacement=True, generator=g)  # (n,)
         eps = torch.randn(n, self.latent, 1, generator=g)  # (n, D, 1)
