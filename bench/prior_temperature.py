@@ -50,6 +50,7 @@ def main():
     ap.add_argument("--data", required=True, help="The dataset folder (its val/ and test/ splits).")
     ap.add_argument("--features", default=None, help="The feature net (default: models/features/<the model's name>).")
     ap.add_argument("--samples", type=int, default=1000)
+    ap.add_argument("--temperatures", default=",".join(map(str, TEMPERATURES)), help="The ones to try, comma-separated.")
     ap.add_argument("--write", action="store_true", help="Store the chosen temperature in the model's prior.")
     args = ap.parse_args()
     folder, data = Path(args.model), Path(args.data)
@@ -59,13 +60,13 @@ def main():
     net = load_feature_net(args.features or ROOT / "models" / "features" / folder.name)
     print(f"{folder}: {args.samples} samples against as many images of {data / 'val'}, feature net {net.config}"[:200])
     print("T     precision recall  F1     p>=0.9  (validation)")
-    val = {}
-    for t in TEMPERATURES:
+    val, temperatures = {}, [float(t) for t in args.temperatures.split(",")]
+    for t in temperatures:
         t0 = time.perf_counter()
         q = val[t] = scores(model, net, data / "val", args.samples, t)
         print(f"{t:.2f}  {q['precision']:.3f}     {q['recall']:.3f}   {f1(q):.3f}  {q.get('confident', float('nan')):.3f}"
               f"   ({time.perf_counter() - t0:.0f} s)", flush=True)
-    best = max(TEMPERATURES, key=lambda t: f1(val[t]))
+    best = max(temperatures, key=lambda t: f1(val[t]))
     print(f"chosen T = {best} (best F1 on the validation split)")
     print("T     precision recall  F1     p>=0.9  (test)")
     for t in sorted({1.0, best}, reverse=True):

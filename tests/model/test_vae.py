@@ -72,6 +72,25 @@ def test_grow_state_into_more_paths_and_another_grouping():
         grow_state(state, old, ModelConfig(paths=2, palette="#000000", **{**TINY, "latent": 8}))
 
 
+def test_grow_state_drops_a_palette_into_learned_colours():
+    """A black-palette model fine-tuned into coloured layers: the palette head goes, the rest is kept."""
+    from im2vec_cli.model.pretrained import grow_state
+
+    torch.manual_seed(0)
+    old = ModelConfig(paths=2, palette="#000000", **TINY)
+    new = ModelConfig(paths=3, grouping="layers", palette="", **TINY)
+    state = Im2Vec(old).state_dict()
+    grown = grow_state(state, old, new, seed=1)
+    model = Im2Vec(new)
+    model.load_state_dict(grown)  # strict: every key and shape fits
+    assert not any(k.startswith("palette_logits.") for k in grown) and any(k.startswith("palette_logits.") for k in state)
+    assert all(torch.equal(v, grown[k]) for k, v in state.items() if k in grown and k != "codes.step")
+    colors = model.decode(torch.randn(4, TINY["latent"])).colors  # learned: not the palette's black
+    assert colors.shape == (4, 3, 3) and colors.min() > 0
+    with pytest.raises(ModelError, match="not give it another"):
+        grow_state(state, old, ModelConfig(paths=2, palette="#000000,#ff0000", **TINY))
+
+
 def test_bad_image_shape_names_the_argument():
     m = Im2Vec(ModelConfig(**TINY))
     with pytest.raises(ValueError, match="images"):

@@ -132,7 +132,8 @@ class _Progress:
 @click.option("--init", "init_model", default=None, metavar="NAME|DIR",
               help="Fine-tune: start from this model's weights (a shipped name or a model folder), with a "
                    "fresh optimiser and schedule; the model options come from it, but --paths and --grouping "
-                   "may change (new paths start as copies of the model's).")
+                   "may change (new paths start as copies of the model's), and a config's palette may be "
+                   "dropped (\"\": colours learned).")
 @click.option("--minutes", type=Finite(0, min_open=True), default=None,
               help="A phase's time: past it, stop at the step reached, checkpoint and export (--resume goes on).")
 @device_option

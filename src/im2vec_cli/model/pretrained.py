@@ -175,12 +175,14 @@ def check_output_folder(out_dir: str | Path, overwrite: bool, *inputs: str | Pat
 def grow_state(state: dict[str, torch.Tensor], old: ModelConfig, new: ModelConfig,
                seed: int = 0) -> dict[str, torch.Tensor]:
     """A state dict of ``old`` made to load into a model of ``new``, which may differ from it in
-    ``GROWABLE`` keys only (fine-tuning into more paths or another grouping).
+    ``GROWABLE`` keys only (fine-tuning into more paths, another grouping, or learned colours).
 
     The LSTM runs over any number of steps, so only the per-path step embeddings
     ``codes.step (P, D)`` depend on the path count: path ``i`` of the new model starts from
     old path ``i mod P_old`` plus noise of the embeddings' initial scale (0.02), so duplicated
-    paths can part. Every other tensor has the same shape in both configs and is copied.
+    paths can part. A fixed palette may be dropped (``palette=""``: colours learned): its
+    ``palette_logits`` go, and the colour head ``codes.color``, which a palette model carries
+    untrained, learns. Every other tensor has the same shape in both configs and is copied.
     """
     import dataclasses
 
@@ -188,7 +190,9 @@ def grow_state(state: dict[str, torch.Tensor], old: ModelConfig, new: ModelConfi
     bad = [k for k in changed if k not in GROWABLE]
     if bad:
         raise ModelError(f"only {', '.join(GROWABLE)} can change when fine-tuning; the model's {', '.join(bad)} differ")
-    out = dict(state)
+    if "palette" in changed and new.palette:
+        raise ModelError("a fine-tune can drop a model's palette (learn colours), not give it another one")
+    out = {k: v for k, v in state.items() if new.palette or not k.startswith("palette_logits.")}
     step = state.get("codes.step")
     if step is not None and step.shape[0] != new.paths:
         gen = torch.Generator().manual_seed(seed)
