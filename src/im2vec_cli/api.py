@@ -201,9 +201,8 @@ def prior_latents(n: int, model=DEFAULT_MODEL, *, seed: int = 0, temperature: fl
     """``n`` latents ``(n, D)`` float32, the same for the same ``seed``.
 
     ``prior``: ``"fitted"`` draws from the density fitted to the training set's latents that
-    the model folder stores (``model.prior``), ``"normal"`` from N(0, I), ``"auto"`` the
-    first when the model has one. ``temperature`` scales the standard deviations (``None``:
-    the one the fitted prior stores, 1 for N(0, I))."""
+    the model folder stores (``model.prior``), ``"normal"`` from N(0, I), ``"auto"`` the first when the
+    model has one. ``temperature`` scales the std (``None``: the fitted prior's stored one, 1 for N(0, I))."""
     return infer.prior_latents(_model(model), n, seed=seed, temperature=temperature, prior=prior).numpy()
 
 

@@ -51,7 +51,7 @@ from .files import atomic_write
 from .model import build_model
 from .model.losses import reconstruction_loss
 from .model.pretrained import save_pretrained
-from .model.prior import DEFAULT_COMPONENTS, IMAGES_PER_COMPONENT, fit_prior, posterior_means
+from .model.prior import IMAGES_PER_COMPONENT, fit_prior, posterior_means
 from .optim import Lookahead
 from .train_eval import evaluate_l2, preview_grid
 
@@ -309,17 +309,17 @@ def train(
         atomic_write(run_dir / "train_config.json", train_cfg.to_json())
     _loop(state, ddp_model, train_x, val_x, model_cfg, train_cfg, run_dir, log, rank, world, deadline)
     if main:
-        _export(state, train_x, str(data_dir or ""), run_dir, train_cfg.seed, emit)
+        _export(state, train_x, str(data_dir or ""), run_dir, train_cfg, emit)
     if world > 1:
         dist.barrier()
     return run_dir / "model"
 
 
-def _export(state: TrainState, train_x: torch.Tensor, data: str, run_dir: Path, seed: int,
+def _export(state: TrainState, train_x: torch.Tensor, data: str, run_dir: Path, cfg: TrainConfig,
             emit: Callable[[Event], None]) -> None:
     """``RUN/model``: the exported weights with their latent prior (``model.prior``, also kept
     beside ``checkpoint.pt`` for ``export``): a Gaussian mixture fitted to the posterior means of
-    the training images, ``DEFAULT_COMPONENTS`` components or fewer for a small set (none for
+    the training images, ``cfg.prior_components`` components or fewer for a small set (none for
     fewer than ``PRIOR_MIN_IMAGES``)."""
     model = state.exported
     if len(train_x) >= PRIOR_MIN_IMAGES:
@@ -328,8 +328,8 @@ def _export(state: TrainState, train_x: torch.Tensor, data: str, run_dir: Path, 
         model.eval()
         mu = posterior_means(model, train_x)  # (N, D)
         model.train(was)
-        k = max(1, min(DEFAULT_COMPONENTS, len(train_x) // IMAGES_PER_COMPONENT))
-        model.latent_prior = fit_prior(mu, k, seed=seed, data=data, step=state.step)
+        k = max(1, min(cfg.prior_components, len(train_x) // IMAGES_PER_COMPONENT))
+        model.latent_prior = fit_prior(mu, k, seed=cfg.seed, data=data, step=state.step)
         model.latent_prior.save(run_dir)
     else:
         emit(NoPrior(len(train_x), PRIOR_MIN_IMAGES))

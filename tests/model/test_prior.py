@@ -297,6 +297,20 @@ def _labelled_folder(root, n=120):
     return root
 
 
+def test_train_fits_the_prior_with_the_components_its_config_asks(tmp_path):
+    """``TrainConfig.prior_components`` (fonts: 62), bounded by one per ``IMAGES_PER_COMPONENT`` images."""
+    from im2vec_cli.model.prior import IMAGES_PER_COMPONENT
+    from im2vec_cli.train import train
+    from tests.test_train import MODEL, fast_cfg
+
+    shapes = synthetic_shapes(3 * IMAGES_PER_COMPONENT, 32)  # 80% train: room for 2 components
+    got = {}
+    for asked in (1, 10):
+        out = train(None, tmp_path / f"run{asked}", MODEL, fast_cfg(steps=2, prior_components=asked), images=shapes)
+        got[asked] = json.loads((out / "latent_prior.json").read_text())["components"]
+    assert got == {1: 1, 10: 2}
+
+
 def test_fit_prior_and_train_features_commands(tmp_path, model):
     _, folder = model
     data = _labelled_folder(tmp_path / "data")

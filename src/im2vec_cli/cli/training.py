@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import click
 
+from ..config import DEFAULT_COMPONENTS
 from ..errors import ConfigError, Im2VecError
 from ..events import (
     AuxStep,
@@ -222,7 +223,7 @@ def export(run_dir, output, half, overwrite):
 @click.option("-o", "--output", required=True, callback=nonempty,
               help="Write the model with its prior to this folder (the model's own: its prior replaced, with --overwrite).")
 @click.option("--overwrite", is_flag=True, help="Replace -o whole when it holds files (or the prior of the model's own folder).")
-@click.option("--components", type=click.IntRange(1, 1000), default=10, show_default=True,
+@click.option("--components", type=click.IntRange(1, 1000), default=DEFAULT_COMPONENTS, show_default=True,
               help="Gaussians of the mixture (1: one full-covariance Gaussian).")
 @model_options
 def fit_prior_cmd(data_dir, output, overwrite, components, model_name, device, seed):

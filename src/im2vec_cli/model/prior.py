@@ -27,13 +27,12 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..config import JsonConfig
+from ..config import DEFAULT_COMPONENTS, JsonConfig
 from ..errors import ModelError
 from ..files import atomic_write
 
 PRIOR_WEIGHTS = "latent_prior.safetensors"
 PRIOR_CONFIG = "latent_prior.json"
-DEFAULT_COMPONENTS = 10  # chosen by precision/recall of the samples (models/*/README.md)
 IMAGES_PER_COMPONENT = 200  # a mixture fitted at the end of training has at most N / this components
 
 
