@@ -196,6 +196,16 @@ def test_cli_train_init_fine_tunes_from_a_model(tmp_path, shapes):
     assert res.exit_code == 0, res.output
     grown = from_pretrained(tmp_path / "d" / "model")
     assert grown.config == dataclasses.replace(start.config, paths=3, grouping="nonzero")
+    # `make train-<set> RESUME=1`: --resume with the phase config, which names only what it changed
+    phase = tmp_path / "phase.json"
+    phase.write_text(json.dumps({"model": {"paths": 3, "grouping": "nonzero"}}))
+    res = CliRunner().invoke(cli, [*base[:-2], "--steps", "2", "--out", str(tmp_path / "d"), "--config", str(phase),
+                                   "--resume", "--device", "cpu"])
+    assert res.exit_code == 0, res.output
+    assert torch.load(tmp_path / "d" / "checkpoint.pt", weights_only=True)["step"] == 2
+    assert from_pretrained(tmp_path / "d" / "model").config == grown.config
+    res = CliRunner().invoke(cli, [*base, "--out", str(tmp_path / "d"), "--resume", "--paths", "4"])
+    assert res.exit_code == 1 and "different model config" in res.output  # a key that differs is still refused
 
 
 @pytest.mark.slow  # two DDP processes (gloo)

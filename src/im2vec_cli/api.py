@@ -235,13 +235,13 @@ def train(data_dir, run_dir="runs/latest", model_config=None, train_config=None,
           epochs: float | None = None, minutes: float | None = None, on_event=None) -> Path:
     """Train a model on a folder of images (``train.train``); returns the exported model folder.
 
-    ``model_config`` / ``train_config``: ``ModelConfig`` / ``TrainConfig`` or dicts of their
-    fields. ``init`` (a model or its name) fine-tunes: its weights and config, of which only
-    ``options.GROWABLE`` fields may differ in ``model_config`` (new paths start as copies).
-    ``resume`` / ``overwrite`` as ``checkpoint.prepare_run_dir`` says; ``minutes`` bounds a phase
-    (``train.train``). ``on_event`` is called
-    with each progress event, a typed ``events.Event`` (``DataLoaded``, ``TrainStep``,
-    ``Validated``, ...; so are those of ``fit_prior``, ``train_aux`` and ``train_features``)."""
+    ``model_config`` / ``train_config``: ``ModelConfig`` / ``TrainConfig`` or dicts of their fields. ``init``
+    (a model or its name) fine-tunes: its weights and config, but ``options.GROWABLE`` fields (``grow_state``).
+    ``resume`` / ``overwrite`` as ``checkpoint.prepare_run_dir`` says (a resumed run keeps its config);
+    ``minutes`` bounds a phase (``train.train``). ``on_event`` is called with each progress event,
+    a typed ``events.Event`` (``DataLoaded``, ``TrainStep``, ``Validated``, ...; so are those of
+    ``fit_prior``, ``train_aux`` and ``train_features``)."""
+    from .checkpoint import resumed_model_config
     from .config import ModelConfig, TrainConfig
     from .model.pretrained import grow_state
     from .options import GROWABLE
@@ -259,8 +259,8 @@ def train(data_dir, run_dir="runs/latest", model_config=None, train_config=None,
             raise ValueError(f"init takes the model's config (but {', '.join(GROWABLE)}); drop {', '.join(fixed)}")
         mcfg = ModelConfig.from_dict({**start.config.to_dict(), **given})
         init_state = grow_state(start.state_dict(), start.config, mcfg, tcfg.seed)
-    else:
-        mcfg = ModelConfig.from_dict(given)
+    else:  # a resumed run goes on with its checkpoint's config
+        mcfg = ModelConfig.from_dict(resumed_model_config(run_dir, given) if resume else given)
     dev = device if isinstance(device, torch.device) else resolve_device(device)
     return run_train(data_dir, run_dir, mcfg, tcfg, device=dev, val_dir=val_dir, resume=resume,
                      overwrite=overwrite, on_event=on_event, epochs=epochs, init_state=init_state, minutes=minutes)

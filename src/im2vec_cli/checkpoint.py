@@ -28,6 +28,13 @@ def save_checkpoint(path: str | Path, state: dict) -> None:
 REQUIRED = {"model": dict, "model_config": dict, "step": int}  # what every reader of a checkpoint uses
 
 
+def resumed_model_config(run_dir: str | Path, given: dict) -> dict:
+    """The model config a resumed run goes on with: its checkpoint's, with the ``given`` keys
+    over it (so a phase config that names only what it changes resumes; a key that differs
+    from the checkpoint's is refused when the weights load)."""
+    return {**(load_checkpoint(Path(run_dir) / "checkpoint.pt").get("model_config") or {}), **given}
+
+
 def load_checkpoint(path: str | Path) -> dict:
     """Read a training checkpoint; a missing, unreadable or malformed one is a one-line
     ``ModelError``. Tensors and plain containers only (``weights_only=True``): a crafted file

@@ -167,6 +167,8 @@ def train(data_dir, run_dir, val_dir, config_file, arch, size, paths, latent, gr
                                    + "); drop " + ", ".join(fixed))
         start = load_model(init_model, "cpu", 0, raster_ok=True)
         model_cfg = {k: v for k, v in model_given.items() if k in GROWABLE}
+    elif resume:  # the checkpoint's config, the options given over it
+        model_cfg = model_given
 
     def _term(signum, frame):  # `kill` (and SIGINT-ignoring background jobs) checkpoint like Ctrl-C
         raise KeyboardInterrupt
