@@ -394,7 +394,7 @@ def _phases() -> list[str]:
     table = OUT / "phases.md"
     if not table.is_file():
         return []
-    return ["", *["#" + line if line.startswith("# ") else line for line in table.read_text().rstrip().splitlines()]]
+    return ["", *["#" + line if line.startswith("#") else line for line in table.read_text().rstrip().splitlines()]]
 
 
 def _provenance(results, sweeps, skipped) -> list[str]:
