@@ -77,13 +77,14 @@ def fit_teacher(model: torch.nn.Module, train_x: torch.Tensor, images: int, seed
     dev = next(model.parameters()).device
     was = model.training
     model.eval()
-    zs = []
+    zs, done, mine = [], 0, sum(len(b) for b in batches)
     try:
-        for i, rows in enumerate(batches):
+        for rows in batches:
             batch = train_x[rows].to(dev).float() / 255  # (b, 3, S, S): the model's frame
             zs.append(project_frames(model, batch, LATENT).z.detach().cpu())
+            done += len(rows)
             if on_progress is not None:
-                on_progress(sum(len(b) for b in batches[: i + 1]), sum(len(b) for b in batches))
+                on_progress(done, mine)
     finally:
         model.train(was)
     if world > 1:
