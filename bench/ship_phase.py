@@ -80,15 +80,17 @@ def ship(run: Path, scratch: Path, shipped: Path, step: int, n_test: int, before
     phase = metrics.get("earlier_phases", 0) + len(metrics.get("phases", [])) + 1  # earlier: before this script
     events = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
     cfg = json.loads((run / "train_config.json").read_text())
+    started = _started(events)
+    added, events = phase_span(metrics.get("phases", []), events, step)
     entry = {"phase": phase, "date": time.strftime("%Y-%m-%d", time.gmtime()), "commit": _commit(),
-             "steps": step, "of_steps": cfg["steps"], "minutes": round(_minutes(events), 1),
-             "test_images": n_test, "before": before, "after": after}
+             "steps": step, "steps_added": added, "of_steps": cfg["steps"], "minutes": round(_minutes(events), 1),
+             "run_started": started, "test_images": n_test, "before": before, "after": after}
     # the card's own figure when it was measured on the whole test split (emoji, icons), else the seeded subset's
     key = "test_recon_l2" if metrics.get("test_images") == n_test else f"test_split_{n_test}_recon_l2"
     replaced = {k: metrics[k] for k in (key, key + "_stderr", "assets_subset_recon_l2",
                                          "assets_subset_fitted_recon_l2", "outline_iou_4x", "chamfer_px")
                 if k in metrics}
-    metrics["step"] = metrics.get("step", 0) + step
+    metrics["step"] = metrics.get("step", 0) + added
     metrics.update({key: after["test_recon_l2"], key + "_stderr": after["test_recon_l2_stderr"],
                     "assets_subset_recon_l2": after["assets_recon_l2"],
                     "assets_subset_fitted_recon_l2": after["assets_fitted_recon_l2"],
@@ -115,7 +117,7 @@ def card_section(entry: dict, cfg: dict, events: list[dict]) -> str:
     b, a = entry["before"], entry["after"]
     lines = [f"## Phase {entry['phase']} ({entry['date']}, code at {entry['commit']}): the shipped weights",
              "", f"`make train-<set>` (`im2vec train DATA --init <the shipped model> --config models/phases/<set>.json "
-             f"--minutes ...`, then `python bench/ship_phase.py`): {entry['steps']} of {entry['of_steps']} steps in "
+             f"--minutes ...`, then `python bench/ship_phase.py`): {_steps(entry)} of {entry['of_steps']} steps in "
              f"{entry['minutes']} min on this machine, with", "",
              "```json", json.dumps({k: v for k, v in cfg.items() if k not in ("class_name", "format_version")}),
              "```", "", "| figure | before | after |", "|---|---|---|",
@@ -134,6 +136,29 @@ def card_section(entry: dict, cfg: dict, events: list[dict]) -> str:
     for e in (val[i] for i in rows):
         lines.append(f"| {e['step']} | {(e['time'] - t0) / 60:.0f} | {e['val_pyramid_l2']:.4f} | {e['val_mse']:.4f} |")
     return "\n".join(lines)
+
+
+def phase_span(phases: list[dict], events: list[dict], step: int) -> tuple[int, list[dict]]:
+    """The steps this phase adds to the shipped model, and the run's events of this phase alone.
+
+    A run resumed (``RESUME=1``) after one of its phases shipped carries that phase's steps
+    and events too: the last shipped entry with the same ``run_started`` (the run's first
+    event) says where this phase began. A run whose earlier phase did not ship adds all its steps.
+    """
+    last = phases[-1] if phases else {}
+    if last.get("run_started") is None or last["run_started"] != _started(events):
+        return step, events
+    began = last["steps"]
+    return step - began, [e for e in events if e.get("step", 0) > began]
+
+
+def _steps(entry: dict) -> str:
+    added = entry.get("steps_added", entry["steps"])
+    return str(entry["steps"]) if added == entry["steps"] else f"{entry['steps'] - added} to {entry['steps']}"
+
+
+def _started(events: list[dict]) -> float | None:
+    return min((e["time"] for e in events if "time" in e), default=None)
 
 
 def _minutes(events: list[dict]) -> float:

@@ -1,0 +1,25 @@
+"""bench/ship_phase.py's count of what a phase adds (issue 37): a run resumed after one of its
+phases shipped must not count that phase's steps and minutes twice."""
+
+from bench.ship_phase import _minutes, _steps, phase_span
+
+
+def _run(first_time: float, steps: range) -> list[dict]:
+    return [{"event": "train", "step": s, "time": first_time + s} for s in steps]
+
+
+def test_a_resumed_run_adds_only_the_steps_after_its_shipped_phase():
+    events = _run(100.0, range(50, 4001, 50))
+    added, mine = phase_span([{"steps": 2250, "run_started": 150.0}], events, 4000)
+    assert added == 1750
+    assert [e["step"] for e in mine] == list(range(2300, 4001, 50))
+    assert _minutes(mine) == (4000 - 2300) / 60
+    assert _steps({"steps": 4000, "steps_added": added}) == "2250 to 4000"
+
+
+def test_another_run_or_an_old_entry_adds_all_its_steps():
+    events = _run(100.0, range(50, 3001, 50))
+    for phases in ([], [{"steps": 2250, "run_started": 999.0}], [{"steps": 2250}]):
+        added, mine = phase_span(phases, events, 3000)
+        assert (added, mine) == (3000, events)
+    assert _steps({"steps": 3000, "steps_added": 3000}) == _steps({"steps": 3000}) == "3000"
