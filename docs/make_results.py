@@ -256,6 +256,13 @@ def _ratios(results) -> list[str]:
         L += ["", "The same ratios for every set on the 64 test-split images of `tests/assets/<set>_test`",
               "(`python bench/ratios.py --markdown docs/results/ratios.md`):", "",
               *ratios.read_text().splitlines()[2:]]
+    bound = ROOT / "docs" / "results" / "fill-bound.md"
+    if bound.is_file():  # what a filled outline can reach on grey-level digits (bench/fill_bound.py's docstring)
+        L += ["", "MNIST's digits are grey-level scans, which a one-colour filled outline cannot follow inside a",
+              "stroke. What filled outlines reach on the same 64 images, the fonts glyphs (rendered from outlines)",
+              "as the control (`python bench/fill_bound.py --markdown docs/results/fill-bound.md`; the oracle is",
+              "the 0.5 level set of the 8x bicubic upsample, filled and box-filtered back):", "",
+              *bound.read_text().splitlines()[2:]]
     return L
 
 
