@@ -116,8 +116,11 @@ def ship(run: Path, scratch: Path, shipped: Path, step: int, n_test: int, before
 def card_section(entry: dict, cfg: dict, events: list[dict]) -> str:
     b, a = entry["before"], entry["after"]
     lines = [f"## Phase {entry['phase']} ({entry['date']}, code at {entry['commit']}): the shipped weights",
-             "", f"`make train-<set>` (`im2vec train DATA --init <the shipped model> --config models/phases/<set>.json "
-             f"--minutes ...`, then `python bench/ship_phase.py`): {_steps(entry)} of {entry['of_steps']} steps in "
+             "", ("`make train-<set> RESUME=1` (`im2vec train DATA --out RUN --resume --minutes ...`, the run of "
+                  "the last phase continued" if entry.get("steps_added", entry["steps"]) != entry["steps"] else
+                  "`make train-<set>` (`im2vec train DATA --init <the shipped model> --config "
+                  "models/phases/<set>.json --minutes ...`")
+             + f", then `python bench/ship_phase.py`): {_steps(entry)} of {entry['of_steps']} steps in "
              f"{entry['minutes']} min on this machine, with", "",
              "```json", json.dumps({k: v for k, v in cfg.items() if k not in ("class_name", "format_version")}),
              "```", "", "| figure | before | after |", "|---|---|---|",

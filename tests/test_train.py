@@ -196,7 +196,13 @@ def test_cli_train_init_fine_tunes_from_a_model(tmp_path, shapes):
     assert res.exit_code == 0, res.output
     grown = from_pretrained(tmp_path / "d" / "model")
     assert grown.config == dataclasses.replace(start.config, paths=3, grouping="nonzero")
-    # `make train-<set> RESUME=1`: --resume with the phase config, which names only what it changed
+    # --resume alone goes on with the checkpoint's train config too (only --steps given over it)
+    res = CliRunner().invoke(cli, ["train", str(d), "--out", str(tmp_path / "a"), "--resume", "--steps", "2",
+                                   "--device", "cpu"])
+    assert res.exit_code == 0, res.output
+    kept = json.loads((tmp_path / "a" / "train_config.json").read_text())
+    assert (kept["steps"], kept["batch"], kept["seed"], kept["val_every"], kept["log_every"]) == (2, 4, 1, 100, 1)
+    # --resume with a phase config, which names only what it changed
     phase = tmp_path / "phase.json"
     phase.write_text(json.dumps({"model": {"paths": 3, "grouping": "nonzero"}}))
     res = CliRunner().invoke(cli, [*base[:-2], "--steps", "2", "--out", str(tmp_path / "d"), "--config", str(phase),

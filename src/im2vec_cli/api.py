@@ -1,10 +1,9 @@
 """The Python API: what the ``im2vec`` command does, as functions.
 
-Pictures go in as Pillow images, NumPy arrays (``(H, W)``, ``(H, W, 3)`` or ``(H, W, 4)``,
-uint8 or float in [0, 1]), ``(3, H, W)`` tensors or file paths; vector images come out as
-``VectorImage`` (``.to_svg()`` gives the SVG text, in the input's pixel frame). Nothing here
-prints or exits: errors are ``Im2VecError`` (one line, for users) or ``ValueError`` (for
-programmers).
+Pictures go in as Pillow images, NumPy arrays (``(H, W)``, ``(H, W, 3)`` or ``(H, W, 4)``, uint8 or
+float in [0, 1]), ``(3, H, W)`` tensors or file paths; vector images come out as ``VectorImage`` (``.to_svg()``
+gives the SVG text, in the input's pixel frame). Nothing here prints or exits: errors are ``Im2VecError``
+(one line, for users) or ``ValueError`` (for programmers).
 
     >>> import im2vec_cli as iv
     >>> model = iv.load_model("fonts")
@@ -237,30 +236,31 @@ def train(data_dir, run_dir="runs/latest", model_config=None, train_config=None,
 
     ``model_config`` / ``train_config``: ``ModelConfig`` / ``TrainConfig`` or dicts of their fields. ``init``
     (a model or its name) fine-tunes: its weights and config, but ``options.GROWABLE`` fields (``grow_state``).
-    ``resume`` / ``overwrite`` as ``checkpoint.prepare_run_dir`` says (a resumed run keeps its config);
-    ``minutes`` bounds a phase (``train.train``). ``on_event`` is called with each progress event,
-    a typed ``events.Event`` (``DataLoaded``, ``TrainStep``, ``Validated``, ...; so are those of
-    ``fit_prior``, ``train_aux`` and ``train_features``)."""
-    from .checkpoint import resumed_model_config
+    ``resume`` / ``overwrite`` as ``checkpoint.prepare_run_dir`` says (a resumed run keeps its configs, the keys
+    given over them: ``checkpoint.resumed_configs``); ``minutes`` bounds a phase (``train.train``). ``on_event``
+    hears each progress event, a typed ``events.Event`` (``DataLoaded``, ``TrainStep``, ...; also of ``fit_prior``,
+    ``train_aux`` and ``train_features``)."""
+    from .checkpoint import resumed_configs
     from .config import ModelConfig, TrainConfig
     from .model.pretrained import grow_state
     from .options import GROWABLE
     from .train import train as run_train
 
     given = model_config.to_dict() if isinstance(model_config, ModelConfig) else dict(model_config or {})
-    tcfg = train_config if isinstance(train_config, TrainConfig) else TrainConfig.from_dict(train_config or {})
-    init_state = None
-    if init is not None:
-        if resume:
-            raise ValueError("init starts a new run and resume continues one: give one of them")
+    t_given = train_config.to_dict() if isinstance(train_config, TrainConfig) else dict(train_config or {})
+    if init is not None and resume:
+        raise ValueError("init starts a new run and resume continues one: give one of them")
+    given, t_given = resumed_configs(run_dir, given, t_given) if resume else (given, t_given)  # checkpoint's, given over
+    tcfg, init_state = TrainConfig.from_dict(t_given), None
+    if init is None:
+        mcfg = ModelConfig.from_dict(given)
+    else:
         start = _model(init).cpu()
         fixed = sorted(k for k in given if k not in GROWABLE and given[k] != start.config.to_dict().get(k))
         if fixed:
             raise ValueError(f"init takes the model's config (but {', '.join(GROWABLE)}); drop {', '.join(fixed)}")
         mcfg = ModelConfig.from_dict({**start.config.to_dict(), **given})
         init_state = grow_state(start.state_dict(), start.config, mcfg, tcfg.seed)
-    else:  # a resumed run goes on with its checkpoint's config
-        mcfg = ModelConfig.from_dict(resumed_model_config(run_dir, given) if resume else given)
     dev = device if isinstance(device, torch.device) else resolve_device(device)
     return run_train(data_dir, run_dir, mcfg, tcfg, device=dev, val_dir=val_dir, resume=resume,
                      overwrite=overwrite, on_event=on_event, epochs=epochs, init_state=init_state, minutes=minutes)

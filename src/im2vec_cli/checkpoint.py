@@ -28,11 +28,13 @@ def save_checkpoint(path: str | Path, state: dict) -> None:
 REQUIRED = {"model": dict, "model_config": dict, "step": int}  # what every reader of a checkpoint uses
 
 
-def resumed_model_config(run_dir: str | Path, given: dict) -> dict:
-    """The model config a resumed run goes on with: its checkpoint's, with the ``given`` keys
-    over it (so a phase config that names only what it changes resumes; a key that differs
-    from the checkpoint's is refused when the weights load)."""
-    return {**(load_checkpoint(Path(run_dir) / "checkpoint.pt").get("model_config") or {}), **given}
+def resumed_configs(run_dir: str | Path, model_given: dict, train_given: dict) -> tuple[dict, dict]:
+    """The model and train configs a resumed run goes on with: its checkpoint's, with the
+    ``given`` keys over them (so ``--resume`` alone continues exactly, and a phase config that
+    names only what it changes resumes; a model key that differs from the checkpoint's is
+    refused when the weights load)."""
+    state = load_checkpoint(Path(run_dir) / "checkpoint.pt")
+    return {**(state.get("model_config") or {}), **model_given}, {**(state.get("train_config") or {}), **train_given}
 
 
 def load_checkpoint(path: str | Path) -> dict:

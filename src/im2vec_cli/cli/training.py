@@ -33,7 +33,8 @@ from .options import SEED, Finite, device_option, load_model, model_options, non
 def _configs(config_file, model_opts: dict, train_opts: dict):
     """``--config`` JSON sections overridden by the command-line options (``None``: unset).
 
-    Returns the two configs and the model options given on the command line or in the file."""
+    Returns the two configs (validated) and the model and train options given on the command line or
+    in the file (what a resumed run takes over its checkpoint's configs)."""
     import json
 
     from ..config import ModelConfig, TrainConfig
@@ -52,7 +53,7 @@ def _configs(config_file, model_opts: dict, train_opts: dict):
             raise Im2VecError(f"{config_file}: the '{name}' section must be a JSON object")
     m = {**sections.get("model", {}), **{k: v for k, v in model_opts.items() if v is not None}}
     t = {**sections.get("train", {}), **{k: v for k, v in train_opts.items() if v is not None}}
-    return ModelConfig.from_dict(m), TrainConfig.from_dict(t), m
+    return ModelConfig.from_dict(m), TrainConfig.from_dict(t), m, t
 
 
 def _say(e: Event) -> None:
@@ -128,7 +129,7 @@ class _Progress:
 @click.option("--beta", type=Finite(0), help="KL weight. [1e-5]")
 @click.option("--seed", type=SEED, help="Random seed. [0]")
 @click.option("--workers", type=click.IntRange(1), help="Image loading threads. [2]")
-@click.option("--resume", is_flag=True, help="Continue exactly from RUN/checkpoint.pt.")
+@click.option("--resume", is_flag=True, help="Continue exactly from RUN/checkpoint.pt, with its configs (options given go over them).")
 @click.option("--overwrite", is_flag=True, help="Start over in a RUN folder that holds a run (its run files are removed).")
 @click.option("--init", "init_model", default=None, metavar="NAME|DIR",
               help="Fine-tune: start from this model's weights (a shipped name or a model folder), with a "
@@ -153,7 +154,7 @@ def train(data_dir, run_dir, val_dir, config_file, arch, size, paths, latent, gr
     from ..options import GROWABLE
     from ..runtime import resolve_device
 
-    model_cfg, train_cfg, model_given = _configs(
+    model_cfg, train_cfg, model_given, train_given = _configs(
         config_file, {"arch": arch, "image_size": size, "paths": paths, "latent": latent, "grouping": grouping},
         {"batch": batch, "steps": steps, "lr": lr, "beta": beta, "seed": seed, "workers": workers})
     dev = resolve_device(device)
@@ -167,8 +168,8 @@ def train(data_dir, run_dir, val_dir, config_file, arch, size, paths, latent, gr
                                    + "); drop " + ", ".join(fixed))
         start = load_model(init_model, "cpu", 0, raster_ok=True)
         model_cfg = {k: v for k, v in model_given.items() if k in GROWABLE}
-    elif resume:  # the checkpoint's config, the options given over it
-        model_cfg = model_given
+    elif resume:  # the checkpoint's configs, the options given over them
+        model_cfg, train_cfg = model_given, train_given
 
     def _term(signum, frame):  # `kill` (and SIGINT-ignoring background jobs) checkpoint like Ctrl-C
         raise KeyboardInterrupt
