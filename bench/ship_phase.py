@@ -91,6 +91,8 @@ def ship(run: Path, scratch: Path, shipped: Path, step: int, n_test: int, before
                                          "assets_subset_fitted_recon_l2", "outline_iou_4x", "chamfer_px")
                 if k in metrics}
     metrics["step"] = metrics.get("step", 0) + added
+    if "training" in metrics:  # what RESULTS.md's provenance shows
+        metrics["training"] = training_with(metrics["training"], entry)
     metrics.update({key: after["test_recon_l2"], key + "_stderr": after["test_recon_l2_stderr"],
                     "assets_subset_recon_l2": after["assets_recon_l2"],
                     "assets_subset_fitted_recon_l2": after["assets_fitted_recon_l2"],
@@ -153,6 +155,17 @@ def phase_span(phases: list[dict], events: list[dict], step: int) -> tuple[int, 
         return step, events
     began = last["steps"]
     return step - began, [e for e in events if e.get("step", 0) > began]
+
+
+def training_with(training: dict, entry: dict) -> dict:
+    """The card's ``training`` summary (steps, wall, phases) with this phase added."""
+    resumed = entry["steps_added"] != entry["steps"]
+    how = (f"the run of phase {entry['phase'] - 1} resumed to {entry['steps']:,} of its {entry['of_steps']:,} steps"
+           if resumed else f"make train-<set> from phase {entry['phase'] - 1}, {entry['steps']:,} steps")
+    return {**training, "steps": training.get("steps", 0) + entry["steps_added"],
+            "wall": f"{training['wall']} + {entry['minutes']:.0f} min" if training.get("wall") else
+            f"{entry['minutes']:.0f} min", "phases": "; ".join(x for x in (training.get("phases"),
+                                                                           f"phase {entry['phase']}: {how}") if x)}
 
 
 def _steps(entry: dict) -> str:
