@@ -51,7 +51,7 @@ def grey(path: Path) -> np.ndarray:
 def oracle(path: Path, level: float = 0.5) -> float:
     """MSE of the filled 0.5 level set of the 8x bicubic upsample, box-filtered back."""
     img = Image.open(path).convert("L")
-    a = grey(path)
+    a = np.asarray(img, dtype=np.float64) / 255
     big = np.asarray(img.resize((img.width * UP, img.height * UP), Image.BICUBIC), dtype=np.float64) / 255
     cover = (big >= level).reshape(img.height, UP, img.width, UP).mean((1, 3))  # white share of each pixel
     return float(((cover - a) ** 2).mean())

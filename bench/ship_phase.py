@@ -119,7 +119,7 @@ def card_section(entry: dict, cfg: dict, events: list[dict]) -> str:
     b, a = entry["before"], entry["after"]
     lines = [f"## Phase {entry['phase']} ({entry['date']}, code at {entry['commit']}): the shipped weights",
              "", ("`make train-<set> RESUME=1` (`im2vec train DATA --out RUN --resume --minutes ...`, the run of "
-                  "the last phase continued" if entry.get("steps_added", entry["steps"]) != entry["steps"] else
+                  "the last phase continued" if _resumed(entry) else
                   "`make train-<set>` (`im2vec train DATA --init <the shipped model> --config "
                   "models/phases/<set>.json --minutes ...`")
              + f", then `python bench/ship_phase.py`): {_steps(entry)} of {entry['of_steps']} steps in "
@@ -159,18 +159,21 @@ def phase_span(phases: list[dict], events: list[dict], step: int) -> tuple[int, 
 
 def training_with(training: dict, entry: dict) -> dict:
     """The card's ``training`` summary (steps, wall, phases) with this phase added."""
-    resumed = entry["steps_added"] != entry["steps"]
     how = (f"the run of phase {entry['phase'] - 1} resumed to {entry['steps']:,} of its {entry['of_steps']:,} steps"
-           if resumed else f"make train-<set> from phase {entry['phase'] - 1}, {entry['steps']:,} steps")
+           if _resumed(entry) else f"make train-<set> from phase {entry['phase'] - 1}, {entry['steps']:,} steps")
     return {**training, "steps": training.get("steps", 0) + entry["steps_added"],
             "wall": f"{training['wall']} + {entry['minutes']:.0f} min" if training.get("wall") else
             f"{entry['minutes']:.0f} min", "phases": "; ".join(x for x in (training.get("phases"),
                                                                            f"phase {entry['phase']}: {how}") if x)}
 
 
+def _resumed(entry: dict) -> bool:
+    """Whether the phase continued a run one of whose phases had shipped (``phase_span``)."""
+    return entry.get("steps_added", entry["steps"]) != entry["steps"]
+
+
 def _steps(entry: dict) -> str:
-    added = entry.get("steps_added", entry["steps"])
-    return str(entry["steps"]) if added == entry["steps"] else f"{entry['steps'] - added} to {entry['steps']}"
+    return f"{entry['steps'] - entry['steps_added']} to {entry['steps']}" if _resumed(entry) else str(entry["steps"])
 
 
 def _started(events: list[dict]) -> float | None:
