@@ -145,6 +145,7 @@ class TrainConfig(JsonConfig):
     ema: float = 0.0  # > 0: keep an exponential moving average of the weights with this decay; val and export use it
     distill: float = 0.0  # > 0: weight of the encoder's squared distance to the fitted latents (distill.Teacher)
     distill_images: int = 4096  # training images whose latents the teacher fits (when distill > 0)
+    outline: float = 0.0  # > 0: weight of the mean squared distance (px^2) of the traced outlines to the paths (outline_aux)
     train_only: str = ""  # TRAIN_ONLY: "encoder" freezes the rest (the decoder the teacher's latents were fitted to)
     prior_components: int = DEFAULT_COMPONENTS  # Gaussians of the latent prior fitted at the end (fonts: 62)
     seed: int = 0
@@ -162,7 +163,7 @@ class TrainConfig(JsonConfig):
             if getattr(self, key) < 1:
                 raise ConfigError(f"TrainConfig.{key} must be >= 1, got {getattr(self, key)}")
         for key in ("lr", "beta", "grad_clip", "lookahead_alpha", "tau_start", "tau_end", "lr_final", "val_fraction",
-                    "distill"):
+                    "distill", "outline"):
             v = getattr(self, key)
             if not (math.isfinite(v) and v >= 0):
                 raise ConfigError(f"TrainConfig.{key} must be a finite number >= 0, got {v}")

@@ -95,6 +95,13 @@ class Teaching(Event, kind="teach"):
     time: float = 0.0
 
 
+class Tracing(Event, kind="trace"):
+    """An outline phase has traced ``done`` of its ``images`` training images (``outline_aux``)."""
+    done: int
+    images: int
+    time: float = 0.0
+
+
 class TimeUp(Event, kind="time_up"):
     """The phase's time (``train``'s ``minutes``) ran out: ``step`` of ``steps`` is its last."""
     step: int

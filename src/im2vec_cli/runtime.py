@@ -1,4 +1,4 @@
-"""Device resolution, CPU threads, seeding and progress bars."""
+"""Device resolution, the process group of a distributed run, CPU threads, seeding and progress bars."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import time
 
 import numpy as np
 import torch
+import torch.distributed as dist
 
 from .errors import Im2VecError
 
@@ -101,3 +102,16 @@ def progress(iterable=None, **kwargs):
     kwargs.setdefault("file", sys.stderr)
     kwargs.setdefault("dynamic_ncols", True)
     return tqdm(iterable, **kwargs)
+
+
+def setup_distributed(device: torch.device) -> tuple[torch.device, int, int]:
+    """Under ``torchrun`` (``WORLD_SIZE`` > 1) join the process group (gloo on CPU, nccl on
+    CUDA, one GPU per local rank). Returns the device, the rank and the world size."""
+    if int(os.environ.get("WORLD_SIZE", "1")) > 1 and not dist.is_initialized():
+        dist.init_process_group("nccl" if device.type == "cuda" else "gloo")
+        if device.type == "cuda":
+            device = torch.device("cuda", int(os.environ.get("LOCAL_RANK", "0")))
+            torch.cuda.set_device(device)
+    if dist.is_available() and dist.is_initialized():
+        return device, dist.get_rank(), dist.get_world_size()
+    return device, 0, 1

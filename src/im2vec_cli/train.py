@@ -19,7 +19,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -44,6 +43,7 @@ from .events import (
     Skipped,
     Teaching,
     TimeUp,
+    Tracing,
     TrainStep,
     Validated,
 )
@@ -53,6 +53,8 @@ from .model.losses import reconstruction_loss
 from .model.pretrained import save_pretrained
 from .model.prior import IMAGES_PER_COMPONENT, fit_prior, posterior_means
 from .optim import Lookahead
+from .outline_aux import Outlines, trace_targets
+from .runtime import setup_distributed
 from .train_eval import evaluate_l2, preview_grid
 
 MAX_NONFINITE_IN_A_ROW = 20  # skipped steps before training stops with an error
@@ -70,19 +72,6 @@ def schedule(step: int, tcfg: TrainConfig) -> dict[str, float]:
     beta = tcfg.beta * min(1.0, step / max(1, tcfg.beta_warmup))
     tau = tcfg.tau_start + (tcfg.tau_end - tcfg.tau_start) * frac
     return {"lr": lr, "beta": beta, "tau": tau}
-
-
-def setup_distributed(device: torch.device) -> tuple[torch.device, int, int]:
-    """Under ``torchrun`` (``WORLD_SIZE`` > 1) join the process group (gloo on CPU, nccl on
-    CUDA, one GPU per local rank). Returns the device, the rank and the world size."""
-    if int(os.environ.get("WORLD_SIZE", "1")) > 1 and not dist.is_initialized():
-        dist.init_process_group("nccl" if device.type == "cuda" else "gloo")
-        if device.type == "cuda":
-            device = torch.device("cuda", int(os.environ.get("LOCAL_RANK", "0")))
-            torch.cuda.set_device(device)
-    if dist.is_available() and dist.is_initialized():
-        return device, dist.get_rank(), dist.get_world_size()
-    return device, 0, 1
 
 
 def load_splits(data_dir: str | Path | None, val_dir: str | Path | None, model_cfg: ModelConfig,
@@ -118,8 +107,9 @@ def load_splits(data_dir: str | Path | None, val_dir: str | Path | None, model_c
 @dataclass
 class TrainState:
     """Everything a run resumes from: the model, the optimiser, the EMA copy (rank 0), the
-    batch generator, the step and a distillation phase's ``Teacher`` (kept in its own file).
-    ``save`` writes it atomically; ``load`` restores it exactly."""
+    batch generator, the step, a distillation phase's ``Teacher`` (kept in its own file) and an
+    outline phase's traced ``Outlines`` (traced anew). ``save`` writes it atomically; ``load``
+    restores it exactly."""
 
     model: torch.nn.Module
     opt: Lookahead
@@ -127,6 +117,7 @@ class TrainState:
     gen: torch.Generator
     step: int = 0
     teacher: Teacher | None = None
+    outlines: Outlines | None = None
 
     @classmethod
     def create(cls, model: torch.nn.Module, cfg: TrainConfig, rank: int) -> TrainState:
@@ -182,8 +173,9 @@ def train_step(state: TrainState, ddp_model: torch.nn.Module, train_x: torch.Ten
     gradient skips the update, so the weights never see a NaN or inf.
 
     With a ``teacher`` the batch is drawn from its images and ``cfg.distill`` times
-    ``distill_loss`` joins the loss. Returns the step's figures: loss, pyramid L2, KL,
-    (distill,) k, lr, tau, gradient norm, finite."""
+    ``distill_loss`` joins the loss; with ``outlines``, ``cfg.outline`` times ``outline_loss``.
+    Returns the step's figures: loss, pyramid L2, KL, (distill, outline,) k, lr, tau, gradient
+    norm, finite."""
     sch = schedule(state.step, cfg)
     for g in state.opt.param_groups:
         g["lr"] = sch["lr"]
@@ -194,12 +186,13 @@ def train_step(state: TrainState, ddp_model: torch.nn.Module, train_x: torch.Ten
         idx, z_fit = state.teacher.draw(cfg.batch, state.gen)
     k = int(torch.randint(model_cfg.min_segments, model_cfg.max_segments + 1, (1,), generator=state.gen))
     x = train_x[idx].to(device).float() / 255  # (B, 3, S, S)
-    rec, kl, _, mu = reconstruction_loss(ddp_model, x, k, sch["tau"], sample=True, supersample=cfg.supersample,
+    rec, kl, dec, mu = reconstruction_loss(ddp_model, x, k, sch["tau"], sample=True, supersample=cfg.supersample,
                                          pyramid=cfg.pyramid)
     loss = rec + sch["beta"] * kl
     taught = {} if z_fit is None else {"distill": distill_loss(mu, z_fit)}
-    if taught:
-        loss = loss + cfg.distill * taught["distill"]
+    if state.outlines is not None:
+        taught["outline"] = state.outlines.loss(dec.points, idx, model_cfg.image_size)
+    loss = loss + sum(getattr(cfg, n) * v for n, v in taught.items())
     state.opt.zero_grad()
     loss.backward()
     gnorm = torch.nn.utils.clip_grad_norm_(state.model.parameters(), cfg.grad_clip)
@@ -213,8 +206,7 @@ def train_step(state: TrainState, ddp_model: torch.nn.Module, train_x: torch.Ten
     else:
         state.opt.zero_grad()
     return {"loss": loss.item(), "pyramid_l2": rec.item(), "kl": kl.item(), **{n: v.item() for n, v in taught.items()},
-            "k": k, "lr": sch["lr"],
-            "tau": sch["tau"], "grad_norm": float(gnorm), "finite": finite, "images": len(x) * world}
+            "k": k, "lr": sch["lr"], "tau": sch["tau"], "grad_norm": float(gnorm), "finite": finite, "images": len(x) * world}
 
 
 def validate(state: TrainState, val_x: torch.Tensor, model_cfg: ModelConfig, cfg: TrainConfig) -> Validated:
@@ -229,8 +221,7 @@ def validate(state: TrainState, val_x: torch.Tensor, model_cfg: ModelConfig, cfg
 
 
 class _Log:
-    """Events go to ``on_event`` and (rank 0) to ``RUN/metrics.jsonl``; ``train`` events carry
-    the throughput since the last one."""
+    """Events go to ``on_event`` and (rank 0) to ``RUN/metrics.jsonl``; ``train`` events carry the throughput."""
 
     def __init__(self, path: Path, emit: Callable[[Event], None], main: bool):
         self.path, self.emit, self.main = path, emit, main
@@ -300,9 +291,7 @@ def train(
     if resume:
         state.load(ckpt, model_cfg, rank)
         emit(Resumed(state.step))
-    if train_cfg.distill > 0:  # the ranks fit shares of the teacher and gather it; rank 0 keeps it for a resume
-        state.teacher = load_or_fit_teacher(run_dir, model, train_x, train_cfg.distill_images, train_cfg.seed,
-                                            lambda done, n: log(Teaching(done, n, time.time())), rank, world)
+    _auxiliary_targets(state, run_dir, train_x, train_cfg, log, rank, world)
     ddp_model = model if world == 1 else torch.nn.parallel.DistributedDataParallel(  # some heads are idle by
         model, device_ids=[device.index] if device.type == "cuda" else None, find_unused_parameters=True)  # config
     if main:
@@ -313,6 +302,16 @@ def train(
     if world > 1:
         dist.barrier()
     return run_dir / "model"
+
+
+def _auxiliary_targets(state: TrainState, run_dir: Path, train_x: torch.Tensor, cfg: TrainConfig, log: _Log,
+                       rank: int, world: int) -> None:
+    """An outline phase's outlines (traced anew on resume); a distillation phase's teacher (kept for a resume)."""
+    if cfg.outline > 0:
+        state.outlines = trace_targets(train_x, lambda done, n: log(Tracing(done, n, time.time())))
+    if cfg.distill > 0:
+        state.teacher = load_or_fit_teacher(run_dir, state.model, train_x, cfg.distill_images, cfg.seed,
+                                            lambda done, n: log(Teaching(done, n, time.time())), rank, world)
 
 
 def _export(state: TrainState, train_x: torch.Tensor, data: str, run_dir: Path, cfg: TrainConfig,
@@ -338,8 +337,9 @@ def _export(state: TrainState, train_x: torch.Tensor, data: str, run_dir: Path, 
 
 def _build(model_cfg: ModelConfig, cfg: TrainConfig, device: torch.device, init_state: dict | None) -> torch.nn.Module:
     """The model to train, its weights frozen as ``cfg.train_only`` says."""
-    if cfg.distill > 0 and model_cfg.arch != "im2vec":
-        raise Im2VecError(f"distillation (distill > 0) fits the paths of an im2vec model; --arch {model_cfg.arch} has none")
+    for key in ("distill", "outline"):
+        if getattr(cfg, key) > 0 and model_cfg.arch != "im2vec":
+            raise Im2VecError(f"{key} > 0 trains the paths of an im2vec model; --arch {model_cfg.arch} has none")
     torch.manual_seed(cfg.seed)
     try:
         model = build_model(model_cfg).to(device)

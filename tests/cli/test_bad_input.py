@@ -120,6 +120,7 @@ CASES = {
     "train config: segments 0": (train.in_config_segments_zero, "error"),
     "train config: negative lr": (train.in_config_lr_negative, "error"),
     "train config: distillation of an imagevae": (train.in_config_distill_imagevae, "error"),
+    "train config: the outline loss for an imagevae": (train.in_config_outline_imagevae, "error"),
 }
 
 

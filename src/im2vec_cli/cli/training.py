@@ -22,6 +22,7 @@ from ..events import (
     Skipped,
     Teaching,
     TimeUp,
+    Tracing,
     TrainStep,
     Validated,
 )
@@ -88,6 +89,8 @@ class _Progress:
                 self.bar.update(step)
             case Teaching(done=done, images=n) if done == n or done % 1024 == 0:
                 click.echo(f"distillation: fitted the latents of {done}/{n} training images", err=True)
+            case Tracing(done=done, images=n) if done == n:
+                click.echo(f"outline loss: traced the outlines of {n} training images", err=True)
             case TimeUp(step=step, steps=steps):
                 warn(f"--minutes ran out at step {step} of {steps}: the model is exported as it is (--resume goes on)")
             case TrainStep(step=step, figures=f, img_per_s=speed):

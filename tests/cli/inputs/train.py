@@ -34,3 +34,7 @@ def in_config_lr_negative(d, m):
 
 def in_config_distill_imagevae(d, m):
     return _config(d, '{"model": {"arch": "imagevae"}, "train": {"distill": 1.0}}')
+
+
+def in_config_outline_imagevae(d, m):
+    return _config(d, '{"model": {"arch": "imagevae"}, "train": {"outline": 0.01}}')
