@@ -28,6 +28,7 @@ import torch
 
 from .errors import TraceError
 from .raster.bezier import flatten_closed
+from .trace.fit import resample
 from .trace.regions import trace
 
 OUTLINE_POINTS = 256  # points per picture's outline (M)
@@ -63,14 +64,6 @@ def _shares(lengths: np.ndarray, total: int) -> np.ndarray:
     return n
 
 
-def _resample(ring: np.ndarray, n: int) -> np.ndarray:
-    """``n`` points evenly spaced by arc length along the closed ring ``(K, 2)``."""
-    closed = np.vstack([ring, ring[:1]])
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(closed, axis=0), axis=1))])
-    t = np.arange(n) * s[-1] / n
-    return np.stack([np.interp(t, s, closed[:, 0]), np.interp(t, s, closed[:, 1])], axis=1)
-
-
 def outline_points(image: np.ndarray, total: int = OUTLINE_POINTS) -> np.ndarray | None:
     """``total`` points ``(M, 2)`` on the traced outlines of ``image (S, S, 3)`` in [0, 1],
     in the model frame ([0, 1], y down); ``None`` when the picture has no outline."""
@@ -90,7 +83,7 @@ def outline_points(image: np.ndarray, total: int = OUTLINE_POINTS) -> np.ndarray
     if len(keep) == 0:
         return None
     n = _shares(lengths[keep], total)
-    pts = np.concatenate([_resample(rings[i], k) for i, k in zip(keep, n)])  # (M, 2) pixel frame
+    pts = np.concatenate([resample(rings[i], count=k) for i, k in zip(keep, n)])  # (M, 2) pixel frame
     return pts / border
 
 

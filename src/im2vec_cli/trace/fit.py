@@ -26,12 +26,13 @@ CORNER_DEG = 50.0  # a turn of at least this within NEAR...
 CONCENTRATION = 1.5  # ...that grows less than this much over FAR is a corner
 
 
-def resample(ring: np.ndarray, step: float = STEP) -> np.ndarray:
-    """Points every ``step`` px along a closed ring ``(N, 2)`` (at least 8): ``(M, 2)``."""
+def resample(ring: np.ndarray, step: float = STEP, count: int | None = None) -> np.ndarray:
+    """Points every ``step`` px along a closed ring ``(N, 2)`` (at least 8), or ``count`` points
+    evenly spaced by arc length: ``(M, 2)``."""
     closed = np.vstack([ring, ring[:1]])
     seg = np.hypot(*np.diff(closed, axis=0).T)
     s = np.concatenate([[0.0], np.cumsum(seg)])
-    m = max(8, int(np.ceil(s[-1] / step)))
+    m = count if count is not None else max(8, int(np.ceil(s[-1] / step)))
     t = np.linspace(0, s[-1], m, endpoint=False)
     return np.stack([np.interp(t, s, closed[:, 0]), np.interp(t, s, closed[:, 1])], 1)
 
