@@ -30,8 +30,7 @@ sys.path.insert(0, str(ROOT / "src"))
 
 from im2vec_cli.evaluate import eval_files  # noqa: E402
 from im2vec_cli.model.pretrained import from_pretrained  # noqa: E402
-from im2vec_cli.outline_aux import CURVE_SAMPLES, OUTLINE_POINTS, outline_loss, outline_points  # noqa: E402
-from im2vec_cli.raster.bezier import flatten_closed  # noqa: E402
+from im2vec_cli.outline_aux import OUTLINE_POINTS, outline_distances, outline_points  # noqa: E402
 
 BATCH = 64
 
@@ -53,12 +52,11 @@ def measure(model_dir: str, x: torch.Tensor, targets: torch.Tensor, valid: torch
     cover, missed, l2 = [], [], []
     with torch.no_grad():
         for i in range(0, len(x), BATCH):
-            xb, tb, vb = x[i:i + BATCH], targets[i:i + BATCH], valid[i:i + BATCH]
+            xb, tb = x[i:i + BATCH], targets[i:i + BATCH]
             dec = model.decode(model.encode(xb)[0], model.config.segments)
-            curve = flatten_closed(dec.points, CURVE_SAMPLES).flatten(1, 2) * size  # (b, Q, 2) pixels
-            reach = torch.cdist(tb * size, curve).min(dim=2).values  # (b, M)
-            cover += [outline_loss(dec.points[j:j + 1], tb[j:j + 1], vb[j:j + 1], size).item() for j in range(len(xb))]
-            missed += (reach > far).float().mean(1).tolist()
+            d2 = outline_distances(dec.points, tb, size)  # (b, M) square pixels
+            cover += d2.mean(1).tolist()
+            missed += (d2 > far * far).float().mean(1).tolist()
             img = model.render(dec, tau=0.3, supersample=2)
             l2 += (img - xb).square().flatten(1).mean(1).tolist()
     keep = valid.numpy()

@@ -12,7 +12,14 @@ import torch
 from im2vec_cli.config import TrainConfig
 from im2vec_cli.errors import ConfigError, Im2VecError
 from im2vec_cli.events import DataLoaded, Tracing
-from im2vec_cli.outline_aux import MIN_PER_RING, OUTLINE_POINTS, outline_loss, outline_points, trace_targets
+from im2vec_cli.outline_aux import (
+    MIN_PER_RING,
+    OUTLINE_POINTS,
+    outline_distances,
+    outline_loss,
+    outline_points,
+    trace_targets,
+)
 from im2vec_cli.raster.bezier import flatten_closed
 from im2vec_cli.train import train
 from im2vec_cli.vector import VectorImage, VectorShape, rasterize_svg, to_svg
@@ -97,6 +104,9 @@ def test_a_path_inside_the_ink_costs_nothing_a_missed_part_costs_its_distance():
     dot = target[:, :1] + torch.tensor([0.1, 0.0])  # one more outline point 0.1 beyond the path at (0.8, 0.5)
     with_dot = torch.cat([target, dot], dim=1)  # (1, 33, 2)
     assert outline_loss(outer[None, None], with_dot, valid, S).item() == pytest.approx((0.1 * S) ** 2 / 33, rel=1e-3)
+    d2 = outline_distances(outer[None, None], with_dot, S)  # (1, 33): per point, what bench/outline_reach reads
+    assert d2.shape == (1, 33) and d2[0, :32].max().item() < 1e-6
+    assert d2[0, 32].item() == pytest.approx((0.1 * S) ** 2, rel=1e-3)
 
 
 def test_pictures_without_an_outline_count_for_nothing():

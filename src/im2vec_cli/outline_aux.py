@@ -105,18 +105,16 @@ def _take(points: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
     return points.gather(1, index.unsqueeze(-1).expand(-1, -1, 2))
 
 
-def outline_loss(points: torch.Tensor, target: torch.Tensor, valid: torch.Tensor, size: int) -> torch.Tensor:
-    """How far the traced outlines are from the decoded paths (one-sided Chamfer), square pixels.
+def outline_distances(points: torch.Tensor, target: torch.Tensor, size: int) -> torch.Tensor:
+    """Squared distance of each outline point to the nearest point sampled on the paths.
 
     Args:
         points: ``(B, P, 3S, 2)`` decoded paths, model frame.
         target: ``(B, M, 2)`` outline points, model frame.
-        valid: ``(B,)`` pictures that have an outline (the others count for nothing).
         size: the model square's side in pixels (``S``), the unit of the result.
 
     Returns:
-        A scalar: the mean over valid pictures of the mean squared distance of each outline
-        point to the nearest point sampled on the paths.
+        ``(B, M)`` square pixels, differentiable in ``points``.
     """
     if points.ndim != 4 or target.ndim != 3 or target.shape[0] != points.shape[0]:
         raise ValueError(f"points must be (B, P, 3S, 2) and target (B, M, 2), got {tuple(points.shape)}, "
@@ -125,6 +123,20 @@ def outline_loss(points: torch.Tensor, target: torch.Tensor, valid: torch.Tensor
     goal = target.to(curve) * size  # (B, M, 2)
     with torch.no_grad():  # which point is nearest; the distances to it are taken exactly below
         near = torch.cdist(goal, curve).argmin(dim=2)  # (B, M): each outline point's nearest path point
-    per = (goal - _take(curve, near)).square().sum(-1).mean(1)  # (B,)
+    return (goal - _take(curve, near)).square().sum(-1)
+
+
+def outline_loss(points: torch.Tensor, target: torch.Tensor, valid: torch.Tensor, size: int) -> torch.Tensor:
+    """How far the traced outlines are from the decoded paths (one-sided Chamfer), square pixels.
+
+    Args:
+        points, target, size: as ``outline_distances``.
+        valid: ``(B,)`` pictures that have an outline (the others count for nothing).
+
+    Returns:
+        A scalar: the mean over valid pictures of the mean squared distance of each outline
+        point to the nearest point sampled on the paths.
+    """
+    per = outline_distances(points, target, size).mean(1)  # (B,)
     w = valid.to(per)
     return (per * w).sum() / w.sum().clamp(min=1)
