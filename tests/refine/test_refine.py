@@ -185,3 +185,30 @@ def test_a_picture_beyond_the_work_size_is_vectorized_at_a_smaller_copy(tmp_path
     check_svg(to_svg(small), 160, 120)
     assert (small.width, small.height) == (160, 120)
     assert _cairo_mse(small, img) < 0.01 and _cairo_mse(full, img) < 0.01
+
+
+def test_the_outline_polish_holds_the_points_hidden_under_the_shapes_above():
+    """A grey square under a black bar (the bar drawn above it), polished against a picture in
+    which the square is smaller: the grey contour's points deep under the bar (``_hidden``)
+    stay exactly where they were; the others move towards the picture."""
+    from im2vec_cli.raster.bezier import line_controls
+    from im2vec_cli.refine.core import _Fitter, _hidden
+    from im2vec_cli.vector import VectorImage, VectorShape
+
+    def polygon_contour(corners):  # (3K, 2): each side a straight cubic
+        pts = [np.asarray(c, dtype=np.float64) for c in corners]
+        return np.array([q for a, b in zip(pts, pts[1:] + pts[:1]) for q in (a, *line_controls(a, b))])
+
+    square = polygon_contour([(8, 8), (22, 8), (40, 8), (40, 40), (22, 40), (8, 40)])  # anchors at x = 22 under the bar
+    bar = polygon_contour([(18, 2), (26, 2), (26, 46), (18, 46)])
+    vec = VectorImage(48, 48, [VectorShape([square], (0.6, 0.6, 0.6), "evenodd"), VectorShape([bar], (0, 0, 0), "evenodd")])
+    held = _hidden([vec], (1, 2, len(square)), "cpu")[0, 0, : len(square)].numpy()
+    under = (square[:, 0] > 18.5) & (square[:, 0] < 25.5) & (square[:, 1] > 2.5) & (square[:, 1] < 45.5)
+    assert np.array_equal(held, under) and held.any()
+    target = VectorImage(48, 48, [VectorShape([polygon_contour([(11, 11), (37, 11), (37, 37), (11, 37)])],
+                                              (0.6, 0.6, 0.6), "evenodd"), vec.shapes[1]])
+    img = torch.from_numpy(rasterize_svg(to_svg(target), 48, 48)).permute(2, 0, 1).float()
+    flags = [[np.ones(len(square) // 3, dtype=bool)], [np.ones(len(bar) // 3, dtype=bool)]]  # corners: no smoothing
+    out = _Fitter(img[None], 8, RefineSettings()).fit_points([vec], 30, 0.3, True, "outline", None, smooth=[flags])[0][0]
+    moved = np.abs(out.shapes[0].contours[0] - square).max(-1)
+    assert moved[held].max() < 1e-5 and moved[~held].max() > 0.5

@@ -48,8 +48,33 @@ def check_clean_svg(svg: str) -> list[str]:
     return ds
 
 
-def no_background_inside(svg: str, truth_svg: str, scale: int = 4, depth: float = 1.0) -> bool:
-    """No near-white pixel of the render lies ``depth`` input px or more inside the true ink."""
-    truth = ink(truth_svg, scale)
+def no_background_inside(svg: str, truth_svg: str, scale: int = 4, depth: float = 1.0, colour: bool = False) -> bool:
+    """No near-white pixel of the render lies ``depth`` input px or more inside the true ink
+    (``colour``: any colour 0.1 off white in a channel, a light grey too, as bench/outlines.py)."""
+    truth = ink(truth_svg, scale) if not colour else (1 - rasterize_svg(truth_svg, 64 * scale, 64 * scale)).max(-1) > 0.1
     inner = distance_transform_edt(np.pad(truth, 1))[1:-1, 1:-1] > depth * scale
     return not (inner & (rasterize_svg(svg, 64 * scale, 64 * scale).min(-1) > 0.9)).any()
+
+
+OPENMOJI_COLOURS = ["#d0cfce", "#92d3f5", "#fcea2b", "#fadcbc", "#b1cc33", "#ea5a47"]  # OpenMoji's palette
+
+
+def openmoji_like(seed: int) -> str:
+    """An SVG drawn as OpenMoji draws (its colours, black lines 2 units wide over the fills, a
+    72-unit frame at 64 px): one or two ellipses, each with an arc of line along its edge, and one
+    to three curves of line across them."""
+    rng = np.random.default_rng(seed)
+    line = 'fill="none" stroke="#000" stroke-width="2" stroke-linecap="round" stroke-linejoin="round"'
+    out = []
+    for _ in range(rng.integers(1, 3)):
+        cx, cy, rx, ry = rng.uniform(24, 48), rng.uniform(24, 48), rng.uniform(12, 24), rng.uniform(12, 24)
+        out.append(f'<ellipse cx="{cx:.1f}" cy="{cy:.1f}" rx="{rx:.1f}" ry="{ry:.1f}" '
+                   f'fill="{OPENMOJI_COLOURS[rng.integers(len(OPENMOJI_COLOURS))]}"/>')
+        a0 = rng.uniform(0, 6.28)
+        a1 = a0 + rng.uniform(1.5, 6.2)
+        x0, y0, x1, y1 = cx + rx * np.cos(a0), cy + ry * np.sin(a0), cx + rx * np.cos(a1), cy + ry * np.sin(a1)
+        out.append(f'<path {line} d="M{x0:.1f} {y0:.1f} A{rx:.1f} {ry:.1f} 0 {int(a1 - a0 > 3.14)} 1 {x1:.1f} {y1:.1f}"/>')
+    for _ in range(rng.integers(1, 4)):
+        p = rng.uniform(10, 62, 8)
+        out.append(f'<path {line} d="M{p[0]:.1f} {p[1]:.1f} C{p[2]:.1f} {p[3]:.1f} {p[4]:.1f} {p[5]:.1f} {p[6]:.1f} {p[7]:.1f}"/>')
+    return f'<svg xmlns="http://www.w3.org/2000/svg" width="64" height="64" viewBox="0 0 72 72">{"".join(out)}</svg>'

@@ -42,3 +42,21 @@ def test_posterize_keeps_a_small_patch_of_a_distinct_hue():
     purple = np.argmin(np.linalg.norm(palette - (0.45, 0.3, 0.75), axis=1))
     assert (labels[disc] == purple).mean() > 0.95 and (labels[~disc] == purple).mean() < 0.01
     assert labels.shape == (160, 160) and len(palette) <= 8
+
+
+def test_a_small_grey_area_between_black_lines_keeps_its_own_colour():
+    """A grey chin (4 x 9 px, 14 flat pixels: under the share of flat pixels that would add a
+    colour) in a black frame below an orange face. Grey lies on the mix of black and white, so
+    the thin-colour test takes it for an edge; the far flat pixels of one colour are an area
+    (``_far_area``) and get a colour of their own, and the chin is labelled grey, not white."""
+    yy, xx = np.mgrid[0:64, 0:64]
+    pic = np.ones((64, 64, 3))
+    r = np.hypot(yy - 28, xx - 32)
+    pic[r < 20] = (0.89, 0.44, 0.13)
+    pic[(r >= 20) & (r < 22)] = 0.0
+    pic[50:59, 25:40] = 0.0  # a black frame 2 px wide...
+    grey = (0.82, 0.81, 0.81)
+    pic[52:56, 27:36] = grey  # ...around the chin
+    palette, labels = quantize(pic, None)
+    assert _nearest(palette, grey) < 0.02 and len(palette) == 4
+    assert np.linalg.norm(palette[labels[52:56, 27:36]] - grey, axis=-1).max() < 0.02

@@ -91,3 +91,21 @@ def test_specks_absorbed_at_once_as_one_at_a_time():
         labels = rng.integers(0, k, (size // 4, size // 4)).repeat(4, 0).repeat(4, 1)[:size, :size]
         labels = np.where(rng.random(labels.shape) < 0.08, rng.integers(0, k, labels.shape), labels)
         assert np.array_equal(_absorb_specks(labels, min_px), _absorb_one_at_a_time(labels, min_px))
+
+
+def test_a_piece_reaches_under_a_stroke_to_its_middle_never_to_its_far_side():
+    """``_hidden_reach``: the pieces on either side of a 4 px stroke drawn over them claim two
+    columns each (they meet under its middle, so a stroke polished thinner opens no gap); beside a
+    2 px stroke over the background a piece claims one column; under a wide one at most
+    ``HIDDEN_REACH`` columns."""
+    from im2vec_cli.trace.regions import HIDDEN_REACH, _hidden_reach
+
+    cols = np.arange(30)[None].repeat(12, 0)
+    left, stroke, right = cols < 10, (cols >= 10) & (cols < 14), cols >= 14
+    assert np.array_equal(np.unique(cols[_hidden_reach(left, stroke)]), [10, 11])
+    assert np.array_equal(np.unique(cols[_hidden_reach(right, stroke)]), [12, 13])
+    thin = (cols >= 10) & (cols < 12)  # the background from column 12 on
+    assert np.array_equal(np.unique(cols[_hidden_reach(left, thin)]), [10])
+    wide = cols >= 10
+    assert np.array_equal(np.unique(cols[_hidden_reach(left, wide)]), np.arange(10, 10 + HIDDEN_REACH))
+    assert not _hidden_reach(left, np.zeros_like(left)).any()

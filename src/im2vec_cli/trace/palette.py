@@ -65,7 +65,9 @@ def quantize(image: np.ndarray, colors: int | None, seed: int = 0, max_colors: i
     colour, so that anti-aliased edges do not get colours of their own; with ``colors=None``
     ``K`` grows until the flat pixels' mean squared error is below ``flat_mse`` and at most
     ``FAR_SHARE`` of them are ``FAR_COLOR`` or farther from their colour (a small area of a
-    distinct colour, a grey arc beside a pale blue, keeps a colour of its own). Edge pixels
+    distinct colour, a grey arc beside a pale blue, keeps a colour of its own), and none of
+    those far pixels is one area's colour (``_far_area``: a grey chin between black lines,
+    a mix of two palette colours that ``_thin_colors`` cannot tell from an edge). Edge pixels
     take the nearest palette colour among those of the flat pixels within two pixels.
     """
     from scipy.cluster.vq import kmeans2
@@ -83,7 +85,8 @@ def quantize(image: np.ndarray, colors: int | None, seed: int = 0, max_colors: i
         used = np.unique(lab)
         centres = centres[used]
         err = ((pool - centres[np.argmin(((pool[:, None] - centres[None]) ** 2).sum(-1), 1)]) ** 2).sum(-1)
-        if err.mean() <= flat_mse and (err > FAR_COLOR**2).mean() <= FAR_SHARE:
+        far = err > FAR_COLOR**2
+        if err.mean() <= flat_mse and far.mean() <= FAR_SHARE and not _far_area(pool[far], len(pool)):
             break
     if not colors:
         pixels = image.reshape(-1, 3)
@@ -121,8 +124,22 @@ def posterize(image: np.ndarray, colors: int, seed: int = 0) -> tuple[np.ndarray
 
 FAR_COLOR = 0.12  # RGB distance of a flat pixel from its palette colour that is another colour...
 FAR_SHARE = 0.005  # ...when more than this share of the flat pixels are that far
+FAR_AREA = 3  # flat pixels of one colour (within FAR_TIE of each other) far from the palette are an area of
+FAR_AREA_SHARE = 1e-3  # that colour (at least this share of the flat pixels too), not noise
+FAR_TIE = 0.04
 THIN_SAMPLE = 65_536  # pixels in which ``_thin_colors`` looks for the colours of thin features (a 256 px
 # picture's worth: at 512 px, 262,144 took 1.9 s of a logo's 4; bench/realworld.py)
+
+
+def _far_area(far: np.ndarray, pool: int) -> bool:
+    """Whether ``far (N, 3)``, the flat pixels far from every palette colour (at most
+    ``FAR_SHARE`` of the ``pool``), hold an area of one colour: ``FAR_AREA`` of them, and
+    ``FAR_AREA_SHARE`` of the pool, within ``FAR_TIE`` of one of them."""
+    need = max(FAR_AREA, FAR_AREA_SHARE * pool)
+    if len(far) < need:
+        return False
+    d = np.sqrt(((far[:, None] - far[None]) ** 2).sum(-1))  # (N, N), N <= FAR_SHARE * 20,000
+    return bool(((d < FAR_TIE).sum(1) >= need).any())
 
 
 def _assign(image: np.ndarray, palette: np.ndarray, flat: np.ndarray) -> np.ndarray:

@@ -280,7 +280,8 @@ def _stacked_regions(image: np.ndarray, palette: np.ndarray, labels: np.ndarray,
     extended = []
     for _, k, box, mask, filled in reversed(pieces):  # front to back: `above` is what covers this piece
         over = above[box]
-        grown = mask | (filled & over) | (binary_dilation(mask) & over)
+        reach = binary_dilation(mask) & over if exact else _hidden_reach(mask, over)  # exact: never polished
+        grown = mask | (filled & over) | reach
         rings = pixel_polygons(grown) if exact else level_polygons(_edge_field(image[box], palette[k], grown, over))
         extended.append((k, box, grown, [r + (box[1].start, box[0].start) for r in rings]))
         over |= mask
@@ -296,6 +297,24 @@ def _stacked_regions(image: np.ndarray, palette: np.ndarray, labels: np.ndarray,
             last_k = k
         mine[grown] = len(regions) - 1
     return regions
+
+
+HIDDEN_REACH = 3  # px: how far a piece extends under the pieces above it, towards the middle of what they cover
+
+
+def _hidden_reach(mask: np.ndarray, over: np.ndarray) -> np.ndarray:
+    """The pixels under ``over`` (the pieces in front) that the piece ``mask`` claims: within
+    ``HIDDEN_REACH`` px of it and nearer it than anything else beneath (another piece, the
+    background), half a pixel more; the parts on either side of a stroke then meet under its
+    middle, so that a stroke polished a little thinner or shifted opens no crack."""
+    from scipy.ndimage import distance_transform_edt
+
+    if not over.any():
+        return over
+    mine = distance_transform_edt(~mask)
+    other = ~mask & ~over
+    theirs = distance_transform_edt(~other) if other.any() else np.full(mask.shape, np.inf)
+    return over & (mine <= HIDDEN_REACH) & (mine < theirs + 0.5)
 
 
 def _edge_field(image: np.ndarray, color: np.ndarray, grown: np.ndarray, above: np.ndarray) -> np.ndarray:
@@ -315,7 +334,7 @@ def _edge_field(image: np.ndarray, color: np.ndarray, grown: np.ndarray, above: 
     axis = color - other  # (H, W, 3)
     norm = (axis * axis).sum(-1)
     mix = np.clip(((image - other) * axis).sum(-1) / np.maximum(norm, 1e-9), 0, 1)
-    use = band & (count > 1e-6) & (norm > 0.15**2)
+    use = band & ~above & (count > 1e-6) & (norm > 0.15**2)  # a pixel under a piece above shows that piece
     field[use] = mix[use]
     return field
 
