@@ -30,7 +30,7 @@ sys.path.insert(0, str(ROOT / "src"))
 
 from im2vec_cli.evaluate import eval_files  # noqa: E402
 from im2vec_cli.model.pretrained import from_pretrained  # noqa: E402
-from im2vec_cli.outline_aux import OUTLINE_POINTS, outline_distances, outline_points  # noqa: E402
+from im2vec_cli.outline_aux import outline_distances, trace_targets  # noqa: E402
 
 BATCH = 64
 
@@ -77,9 +77,8 @@ def main():
     size = from_pretrained(args.models[0]).config.image_size
     files = eval_files(args.data, args.limit, 0)
     x = pictures(files, size)
-    pts = [outline_points(p.permute(1, 2, 0).double().numpy()) for p in x]
-    valid = torch.tensor([p is not None for p in pts])
-    targets = torch.stack([torch.zeros(OUTLINE_POINTS, 2) if p is None else torch.from_numpy(p).float() for p in pts])
+    outlines = trace_targets((x * 255).round().to(torch.uint8))  # x holds 8-bit levels: exact
+    targets, valid = outlines.points, outlines.valid
     lines = [f"{len(files)} test pictures of {args.data} ({int(valid.sum())} with an outline), far = {args.far} px", "",
              "| model | cover (px²) | outline missed | pictures missing a part | L2 (soft render) |", "|---|---|---|---|---|"]
     print("\n".join(lines), flush=True)

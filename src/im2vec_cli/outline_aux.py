@@ -35,7 +35,7 @@ OUTLINE_POINTS = 256  # points per picture's outline (M)
 MIN_PER_RING = 6  # points each ring gets at least (a small hole still pulls)
 CURVE_SAMPLES = 4  # points sampled on each decoded cubic segment
 
-__all__ = ["OUTLINE_POINTS", "Outlines", "outline_loss", "outline_points", "trace_targets"]
+__all__ = ["OUTLINE_POINTS", "Outlines", "outline_distances", "outline_loss", "outline_points", "trace_targets"]
 
 
 @dataclass

@@ -215,7 +215,7 @@ class _Fitter:
         opt = Adam(groups)
         joins = None if smooth is None else _smooth_joins(vecs, smooth, dev)
         hold = None if smooth is None else _hidden(vecs, t.points.shape[:3], dev)  # (B, P, 3K): points held
-        start = t.points.clone()
+        hold = hold if hold is not None and bool(hold.any()) else None  # (at their start: t.points)
         anneal = int(0.6 * steps) if tau_start != s.tau_end else 0
         rows_all = torch.tensor(index, device=dev)
         progress = _Progress(len(vecs), s)
@@ -235,7 +235,7 @@ class _Fitter:
                 _align(pts, joins, self.size)
             if hold is not None:
                 with torch.no_grad():
-                    pts.copy_(torch.where(hold[..., None], start, pts))
+                    pts.copy_(torch.where(hold[..., None], t.points, pts))
             if on_step:
                 on_step(RefineStep(stage, i, float(fit.detach().mean()), len(progress.live), tau))
             for k in progress.live:
