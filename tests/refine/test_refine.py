@@ -187,6 +187,23 @@ def test_a_picture_beyond_the_work_size_is_vectorized_at_a_smaller_copy(tmp_path
     assert _cairo_mse(small, img) < 0.01 and _cairo_mse(full, img) < 0.01
 
 
+def test_a_point_is_deep_under_the_shapes_above_as_the_distance_transform_says():
+    """``_deep`` asks a disk of pixels around each point; SciPy's Euclidean distance
+    transform of the whole drawing (which it replaced: 4x slower on 64 px emoji) is the
+    reference, on random blobs and at every pixel, the picture's borders included."""
+    from scipy.ndimage import binary_dilation, distance_transform_edt
+
+    from im2vec_cli.refine.core import _R, HIDDEN_UP, _deep
+
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        above = binary_dilation(rng.random((40, 56)) < 0.03, iterations=int(rng.integers(3, 6)))
+        iy, ix = np.mgrid[:40, :56]
+        pts = (np.stack([ix.ravel(), iy.ravel()], 1) + rng.random((40 * 56, 2))) / HIDDEN_UP  # input px
+        want = (distance_transform_edt(above) > _R).ravel()
+        assert np.array_equal(_deep(above, pts), want) and want.any() and (above.ravel() & ~want).any()
+
+
 def test_the_outline_polish_holds_the_points_hidden_under_the_shapes_above():
     """A grey square under a black bar (the bar drawn above it), polished against a picture in
     which the square is smaller: the grey contour's points deep under the bar (``_hidden``)

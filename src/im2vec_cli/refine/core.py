@@ -296,37 +296,49 @@ def _hidden(vecs: list[VectorImage], shape: tuple[int, int, int], device) -> tor
     more than ``HIDDEN_DEPTH`` px inside the shapes drawn above its own (cairo at 4x). The
     polish sees nothing of a hidden edge but the soft edges of what covers it, and pulled
     such edges out into slivers of background beside the strokes above (OpenMoji faces).
-    A picture of one shape has none (and needs neither SciPy nor cairo)."""
+    A picture of one shape has none (and needs no cairo)."""
     out = torch.zeros(shape, dtype=torch.bool)
     for b, vec in enumerate(vecs):
         if len(vec.shapes) < 2:
             continue
         p = 0
-        for sh, deep in zip(vec.shapes, _deep_under(vec)):
+        for sh, above in zip(vec.shapes, _covers(vec)):
             for c in sh.contours:
-                ix = np.clip((np.asarray(c)[:, 0] * HIDDEN_UP).astype(int), 0, deep.shape[1] - 1)
-                iy = np.clip((np.asarray(c)[:, 1] * HIDDEN_UP).astype(int), 0, deep.shape[0] - 1)
-                out[b, p, : len(c)] = torch.from_numpy(deep[iy, ix])
+                out[b, p, : len(c)] = torch.from_numpy(_deep(above, np.asarray(c)))
                 p += 1
     return out.to(device)
 
 
-HIDDEN_UP = 4  # ``_deep_under`` draws at 4x the picture's size
+HIDDEN_UP = 4  # ``_covers`` draws at 4x the picture's size
+_R = HIDDEN_DEPTH * HIDDEN_UP  # the depth in pixels of the 4x drawing
+_DISK = [(dx, dy) for dx in range(-int(_R), int(_R) + 1) for dy in range(-int(_R), int(_R) + 1)
+         if dx * dx + dy * dy <= _R * _R]  # the offsets within it
 
 
-def _deep_under(vec: VectorImage) -> list[np.ndarray]:
-    """Per shape of ``vec``, ``(4H, 4W)`` bool: more than ``HIDDEN_DEPTH`` px inside the shapes above it."""
-    from scipy.ndimage import distance_transform_edt
-
+def _covers(vec: VectorImage) -> list[np.ndarray]:
+    """Per shape of ``vec``, ``(4H, 4W)`` bool: the pixels the shapes above it cover."""
     w, h = vec.width, vec.height
     above = np.zeros((round(h * HIDDEN_UP), round(w * HIDDEN_UP)), dtype=bool)
     out = []
     for sh in reversed(vec.shapes):  # front to back: ``above`` is what covers this shape
-        out.append(distance_transform_edt(above) > HIDDEN_DEPTH * HIDDEN_UP)
+        out.append(above.copy())
         ink = fill_vector(VectorImage(w, h, [VectorShape(sh.contours, (0.0, 0.0, 0.0), sh.fill_rule)]),
                           above.shape[1], above.shape[0])
         above |= ink[..., 0] < 0.5
     return out[::-1]
+
+
+def _deep(above: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """``(N,)`` bool: the points ``pts (N, 2)`` (input px) more than ``HIDDEN_DEPTH`` px inside
+    ``above``: every pixel of the disk of that radius around the point's pixel covered (the
+    Euclidean distance transform's test, at the few points asked instead of every pixel)."""
+    h, w = above.shape
+    ix = np.clip((pts[:, 0] * HIDDEN_UP).astype(int), 0, w - 1)
+    iy = np.clip((pts[:, 1] * HIDDEN_UP).astype(int), 0, h - 1)
+    deep = np.ones(len(pts), dtype=bool)
+    for dx, dy in _DISK:  # the disk's pixels off the picture are not asked (as the transform does)
+        deep &= above[np.clip(iy + dy, 0, h - 1), np.clip(ix + dx, 0, w - 1)]
+    return deep
 
 
 def _align(pts: torch.Tensor, joins: torch.Tensor, size: tuple[int, int]) -> None:
