@@ -301,10 +301,10 @@ def _model_and_images(model, output, overwrite: bool, data_dir, emit):
 
 
 def fit_prior(data_dir, model, output, *, components: int = 10, seed: int = 0, overwrite: bool = False,
-              on_event=None):
+              shrink: float = 1e-4, on_event=None):
     """Fit the latent density ``sample`` draws from to ``data_dir``'s images (``DATA/train``
     when it exists) and write the model with it to ``output`` (the model's own folder: only
-    its prior, with ``overwrite``). Returns the ``LatentPrior``."""
+    its prior, with ``overwrite``); ``shrink``: ``model.prior.fit_prior``'s. Returns the ``LatentPrior``."""
     from .files import replace_folder
     from .model.pretrained import save_pretrained, stored_half
     from .model.prior import fit_prior as fit
@@ -315,7 +315,7 @@ def fit_prior(data_dir, model, output, *, components: int = 10, seed: int = 0, o
     if components > max(1, len(data) // 2):
         raise ConfigError(f"components {components}: at most half the {len(data)} images")
     emit(Encoding(len(data)))
-    prior = fit(posterior_means(model, data), components, seed=seed, data=str(data_dir))
+    prior = fit(posterior_means(model, data), components, seed=seed, data=str(data_dir), shrink=shrink)
     if in_place:
         prior.save(output)
     else:

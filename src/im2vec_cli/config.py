@@ -23,6 +23,7 @@ FORMAT_VERSION = 1
 PYRAMID_MODES = ("blur", "render")  # TrainConfig.pyramid: the coarse levels of the loss (raster.render_pyramid)
 TRAIN_ONLY = ("", "encoder")  # TrainConfig.train_only: every weight, or the encoder's alone (the rest frozen)
 DEFAULT_COMPONENTS = 10  # Gaussians of a fitted latent prior (model.prior): chosen by the samples' precision/recall on MNIST
+DEFAULT_SHRINK = 1e-4  # added to each of its covariances' diagonal, in units of the latents' mean variance
 
 
 class JsonConfig:
@@ -148,6 +149,7 @@ class TrainConfig(JsonConfig):
     outline: float = 0.0  # > 0: weight of the mean squared distance (px^2) of the traced outlines to the paths (outline_aux)
     train_only: str = ""  # TRAIN_ONLY: "encoder" freezes the rest (the decoder the teacher's latents were fitted to)
     prior_components: int = DEFAULT_COMPONENTS  # Gaussians of the latent prior fitted at the end (fonts: 62)
+    prior_shrink: float = DEFAULT_SHRINK  # its covariance shrinkage (model.prior.fit_prior; emoji: 0.05)
     seed: int = 0
     val_fraction: float = 0.05
     val_every: int = 250
@@ -163,7 +165,7 @@ class TrainConfig(JsonConfig):
             if getattr(self, key) < 1:
                 raise ConfigError(f"TrainConfig.{key} must be >= 1, got {getattr(self, key)}")
         for key in ("lr", "beta", "grad_clip", "lookahead_alpha", "tau_start", "tau_end", "lr_final", "val_fraction",
-                    "distill", "outline"):
+                    "distill", "outline", "prior_shrink"):
             v = getattr(self, key)
             if not (math.isfinite(v) and v >= 0):
                 raise ConfigError(f"TrainConfig.{key} must be a finite number >= 0, got {v}")

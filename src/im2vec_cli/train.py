@@ -328,7 +328,7 @@ def _export(state: TrainState, train_x: torch.Tensor, data: str, run_dir: Path, 
         mu = posterior_means(model, train_x)  # (N, D)
         model.train(was)
         k = max(1, min(cfg.prior_components, len(train_x) // IMAGES_PER_COMPONENT))
-        model.latent_prior = fit_prior(mu, k, seed=cfg.seed, data=data, step=state.step)
+        model.latent_prior = fit_prior(mu, k, seed=cfg.seed, data=data, step=state.step, shrink=cfg.prior_shrink)
         model.latent_prior.save(run_dir)
     else:
         emit(NoPrior(len(train_x), PRIOR_MIN_IMAGES))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from ..config import DEFAULT_COMPONENTS
+from ..config import DEFAULT_COMPONENTS, DEFAULT_SHRINK
 from ..errors import ConfigError, Im2VecError
 from ..events import (
     AuxStep,
@@ -231,8 +231,11 @@ def export(run_dir, output, half, overwrite):
 @click.option("--overwrite", is_flag=True, help="Replace -o whole when it holds files (or the prior of the model's own folder).")
 @click.option("--components", type=click.IntRange(1, 1000), default=DEFAULT_COMPONENTS, show_default=True,
               help="Gaussians of the mixture (1: one full-covariance Gaussian).")
+@click.option("--shrink", type=click.FloatRange(0, 10), default=DEFAULT_SHRINK, show_default=True,
+              help="Added to each Gaussian's variances, in units of the latents' mean variance: larger spreads each "
+                   "over pictures like its own (see bench/prior_components.py).")
 @model_options
-def fit_prior_cmd(data_dir, output, overwrite, components, model_name, device, seed):
+def fit_prior_cmd(data_dir, output, overwrite, components, shrink, model_name, device, seed):
     """Fit the latent density `sample` draws from to a trained model's training images.
 
     Encodes DATA_DIR's images (DATA_DIR/train when it exists) and fits a full-covariance
@@ -244,7 +247,7 @@ def fit_prior_cmd(data_dir, output, overwrite, components, model_name, device, s
     model = load_model(model_name, device, seed, raster_ok=True)
     try:
         prior = api.fit_prior(data_dir, model, output, components=components, seed=seed, overwrite=overwrite,
-                              on_event=_say)
+                              shrink=shrink, on_event=_say)
     except ConfigError as exc:  # the one option checked against the data: --components
         raise click.UsageError(f"--{exc}") from None
     click.echo(f"mean log-likelihood {prior.config.log_likelihood:.1f} nats per image; "

@@ -27,13 +27,14 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..config import DEFAULT_COMPONENTS, JsonConfig
+from ..config import DEFAULT_COMPONENTS, DEFAULT_SHRINK, JsonConfig
 from ..errors import ModelError
 from ..files import atomic_write
 
 PRIOR_WEIGHTS = "latent_prior.safetensors"
 PRIOR_CONFIG = "latent_prior.json"
-IMAGES_PER_COMPONENT = 200  # a mixture fitted at the end of training has at most N / this components
+IMAGES_PER_COMPONENT = 30  # a mixture fitted at the end of training has at most N / this components
+# (emoji: 100 components of 3,126 latents, shrunk by 0.05, score best on the validation split)
 
 
 @dataclass(frozen=True)
@@ -48,6 +49,7 @@ class LatentPriorConfig(JsonConfig):
     seed: int = 0
     step: int = -1  # the training step of the weights it was fitted to (-1: not from a run)
     log_likelihood: float = 0.0  # mean per image, of the fitted latents (nats)
+    shrink: float = DEFAULT_SHRINK  # added to each covariance's diagonal, in units of the latents' mean variance
     temperature: float = 1.0  # what ``sample`` draws with unless told (chosen on the validation split)
 
     def __post_init__(self):
@@ -125,10 +127,12 @@ class LatentPrior:
 
 
 def fit_prior(latents: torch.Tensor, components: int = DEFAULT_COMPONENTS, *, seed: int = 0, data: str = "",
-              step: int = -1, reg: float = 1e-4) -> LatentPrior:
+              step: int = -1, shrink: float = DEFAULT_SHRINK) -> LatentPrior:
     """A full-covariance Gaussian mixture fitted to latents ``(N, D)`` by EM (scikit-learn's
-    ``GaussianMixture``, k-means++ start); ``reg`` is added to every covariance's diagonal, in
-    units of the latents' mean variance, so a component on few points stays well-conditioned."""
+    ``GaussianMixture``, k-means++ start); ``shrink`` is added to every covariance's diagonal, in
+    units of the latents' mean variance, so a component on few points stays well-conditioned
+    (and, larger, spreads to the latents of pictures like its own: chosen on the validation
+    split by ``bench/prior_components.py``)."""
     from sklearn.mixture import GaussianMixture
 
     if latents.dim() != 2:
@@ -136,13 +140,15 @@ def fit_prior(latents: torch.Tensor, components: int = DEFAULT_COMPONENTS, *, se
     n, d = latents.shape
     if not 1 <= components <= max(1, n // 2):
         raise ValueError(f"components must be in [1, max(1, N/2)] = [1, {max(1, n // 2)}], got {components}")
+    if not (np.isfinite(shrink) and shrink >= 0):
+        raise ValueError(f"shrink must be a finite number >= 0, got {shrink}")
     x = latents.double().numpy()
     scale = float(x.var(0).mean())
-    gm = GaussianMixture(components, covariance_type="full", reg_covar=reg * scale, random_state=seed,
+    gm = GaussianMixture(components, covariance_type="full", reg_covar=shrink * scale, random_state=seed,
                          init_params="k-means++", max_iter=100, tol=1e-2)  # tol: nats per image
     gm.fit(x)
     cfg = LatentPriorConfig(components=components, latent=d, images=n, data=data, seed=seed, step=step,
-                            log_likelihood=float(gm.score(x)))
+                            log_likelihood=float(gm.score(x)), shrink=shrink)
     tril = np.linalg.cholesky(gm.covariances_)  # (K, D, D)
     return LatentPrior(torch.from_numpy(gm.weights_), torch.from_numpy(gm.means_), torch.from_numpy(tril), cfg)
 
