@@ -301,30 +301,31 @@ def _hidden(vecs: list[VectorImage], shape: tuple[int, int, int], device) -> tor
     for b, vec in enumerate(vecs):
         if len(vec.shapes) < 2:
             continue
-        p = 0
-        for sh, above in zip(vec.shapes, _covers(vec)):
-            for c in sh.contours:
-                out[b, p, : len(c)] = torch.from_numpy(_deep(above, np.asarray(c)))
-                p += 1
+        flags = [f for per_shape in _held(vec) for f in per_shape]  # one per contour, in _Paths order
+        for p, f in enumerate(flags):
+            out[b, p, : len(f)] = torch.from_numpy(f)
     return out.to(device)
 
 
-HIDDEN_UP = 4  # ``_covers`` draws at 4x the picture's size
+HIDDEN_UP = 4  # ``_held`` draws at 4x the picture's size
 _R = HIDDEN_DEPTH * HIDDEN_UP  # the depth in pixels of the 4x drawing
 _DISK = [(dx, dy) for dx in range(-int(_R), int(_R) + 1) for dy in range(-int(_R), int(_R) + 1)
          if dx * dx + dy * dy <= _R * _R]  # the offsets within it
 
 
-def _covers(vec: VectorImage) -> list[np.ndarray]:
-    """Per shape of ``vec``, ``(4H, 4W)`` bool: the pixels the shapes above it cover."""
+def _held(vec: VectorImage) -> list[list[np.ndarray]]:
+    """Per shape of ``vec``, per contour, ``(3K,)`` bool: its control points ``_deep`` under the
+    shapes above it, drawn front to back into one ``(4H, 4W)`` mask (the back shape is not drawn:
+    nothing lies under it)."""
     w, h = vec.width, vec.height
     above = np.zeros((round(h * HIDDEN_UP), round(w * HIDDEN_UP)), dtype=bool)
     out = []
-    for sh in reversed(vec.shapes):  # front to back: ``above`` is what covers this shape
-        out.append(above.copy())
-        ink = fill_vector(VectorImage(w, h, [VectorShape(sh.contours, (0.0, 0.0, 0.0), sh.fill_rule)]),
-                          above.shape[1], above.shape[0])
-        above |= ink[..., 0] < 0.5
+    for i, sh in enumerate(reversed(vec.shapes)):  # front to back: ``above`` is what covers this shape
+        out.append([_deep(above, np.asarray(c)) for c in sh.contours])
+        if i < len(vec.shapes) - 1:
+            ink = fill_vector(VectorImage(w, h, [VectorShape(sh.contours, (0.0, 0.0, 0.0), sh.fill_rule)]),
+                              above.shape[1], above.shape[0])
+            above |= ink[..., 0] < 0.5
     return out[::-1]
 
 
