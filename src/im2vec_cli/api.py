@@ -32,6 +32,7 @@ import torch
 from . import infer
 from . import project as projection
 from . import refine as refinement
+from .config import DEFAULT_COMPONENTS, DEFAULT_SHRINK
 from .errors import ConfigError, ModelError, VectorizeError, describe
 from .events import Encoding, Event, FeatureData, FeatureTest, Measuring, Skipped
 from .files import as_image
@@ -48,8 +49,8 @@ __all__ = ["VectorizeOptions", "decode", "encode", "export", "fit_prior", "inter
 
 
 def load_model(name_or_dir: str = DEFAULT_MODEL, device: str | torch.device = "auto"):
-    """A shipped model by name (``fonts``, ``mnist``, ``emoji``, ``icons``) or a model folder
-    written by ``im2vec train`` / ``export``, on ``device`` (``auto``: CUDA, then MPS, then CPU)."""
+    """A shipped model by name (``fonts``, ``mnist``, ``emoji``, ``icons``) or a model folder written by
+    ``im2vec train`` / ``export``, on ``device`` (``auto``: CUDA, then MPS, then CPU)."""
     dev = device if isinstance(device, torch.device) else resolve_device(device)
     return from_pretrained(name_or_dir, dev)
 
@@ -174,8 +175,7 @@ def _latents(z, model) -> torch.Tensor:
 
 
 def _parts(parts: str | None, keep_all: bool) -> bool:
-    """Whether to draw clean outlines: ``parts`` ``"clean"`` / ``"model"``, default clean
-    unless ``keep_all`` (morphs need the model's own paths)."""
+    """Whether to draw clean outlines: ``parts`` ``"clean"`` / ``"model"``, default clean unless ``keep_all``."""
     parts = parts or ("model" if keep_all else "clean")
     if parts not in PARTS:
         raise ValueError(f"parts must be one of {list(PARTS)}, got {parts!r}")
@@ -300,11 +300,11 @@ def _model_and_images(model, output, overwrite: bool, data_dir, emit):
     return source, model, in_place, data
 
 
-def fit_prior(data_dir, model, output, *, components: int = 10, seed: int = 0, overwrite: bool = False,
-              shrink: float = 1e-4, on_event=None):
-    """Fit the latent density ``sample`` draws from to ``data_dir``'s images (``DATA/train``
-    when it exists) and write the model with it to ``output`` (the model's own folder: only
-    its prior, with ``overwrite``); ``shrink``: ``model.prior.fit_prior``'s. Returns the ``LatentPrior``."""
+def fit_prior(data_dir, model, output, *, components: int = DEFAULT_COMPONENTS, seed: int = 0,
+              overwrite: bool = False, shrink: float = DEFAULT_SHRINK, on_event=None):
+    """Fit the latent density ``sample`` draws from to ``data_dir``'s images (``DATA/train`` when it exists) and
+    write the model with it to ``output`` (its own folder: only its prior, with ``overwrite``); ``shrink``:
+    ``model.prior.fit_prior``'s. Returns the ``LatentPrior``."""
     from .files import replace_folder
     from .model.pretrained import save_pretrained, stored_half
     from .model.prior import fit_prior as fit

@@ -108,16 +108,19 @@ class ModelConfig(JsonConfig):
     max_segments: int = 25
     samples: int = 4  # lines per cubic when rasterising
     levels: int = 3  # Gaussian pyramid levels of the loss (eq. 1)
+    feedback: int = 0  # render-and-compare passes correcting the encoder's latent (model.encoder.Feedback), 0 to 3
     segment_predictor: int = 0  # hidden width of the segment-count MLP (sec. 3.3); 0: none (`im2vec train-aux` adds it)
 
     def __post_init__(self):
         """Values no model can be built with are refused here (one line naming the key)."""
         at_least = {"image_size": 8, "channels": 1, "latent": 1, "paths": 1, "enc_width": 8, "lstm_hidden": 1,
                     "code": 1, "dec_width": 1, "dec_layers": 1, "deform_width": 1, "segments": 1, "min_segments": 1,
-                    "max_segments": 1, "samples": 1, "levels": 1, "segment_predictor": 0}
+                    "max_segments": 1, "samples": 1, "levels": 1, "segment_predictor": 0, "feedback": 0}
         for key, low in at_least.items():
             if getattr(self, key) < low:
                 raise ConfigError(f"ModelConfig.{key} must be >= {low}, got {getattr(self, key)}")
+        if self.feedback > 3:
+            raise ConfigError(f"ModelConfig.feedback must be <= 3 (each pass renders the batch once), got {self.feedback}")
         if self.min_segments > self.max_segments:
             raise ConfigError(f"ModelConfig.min_segments ({self.min_segments}) is above max_segments ({self.max_segments})")
         for key, allowed in (("arch", ARCHS), ("fit", FITS),

@@ -18,7 +18,7 @@ PRIORS = ("auto", "fitted", "normal")  # `sample --prior`: auto is the fitted pr
 GROUPINGS = ("evenodd", "nonzero", "layers")  # ModelConfig.grouping: how paths make shapes
 ARCHS = ("im2vec", "imagevae")  # ModelConfig.arch: the vector model, or the paper's raster baseline
 FITS = ("resize", "pad")  # ModelConfig.fit: how an image smaller than the model square meets it
-GROWABLE = ("paths", "grouping", "palette")  # ModelConfig keys a fine-tune (`train --init`) may change
+GROWABLE = ("paths", "grouping", "palette", "feedback")  # ModelConfig keys a fine-tune (`train --init`) may change
 
 
 MEMORY_DEFAULT = 2 * 2**30  # `vectorize --max-memory`: the budget of one vectorize process...

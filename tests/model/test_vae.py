@@ -91,6 +91,41 @@ def test_grow_state_drops_a_palette_into_learned_colours():
         grow_state(state, old, ModelConfig(paths=2, palette="#000000,#ff0000", **TINY))
 
 
+def test_a_feedback_pass_grown_in_encodes_as_before_then_learns_from_the_render():
+    """``feedback`` added by a fine-tune starts as the identity on the encoder's latent; its
+    step, trained alone through the renderer, cuts the error and reads the render it is given."""
+    from im2vec_cli.model.pretrained import grow_state
+
+    torch.manual_seed(0)
+    old, new = ModelConfig(palette="#000000", **TINY), ModelConfig(feedback=1, palette="#000000", **TINY)
+    base = Im2Vec(old)
+    torch.nn.init.normal_(base.decoder.net[-1].weight, std=0.05)  # paths that depend on z (untrained: circles)
+    model = Im2Vec(new)
+    model.load_state_dict(grow_state(base.state_dict(), old, new, seed=2))  # strict
+    x = torch.ones(4, 3, 32, 32)
+    for i, r in enumerate((4, 6, 8, 10)):
+        x[i, :, 16 - r : 16 + r, 10 : 10 + r] = 0.0  # black bars of four sizes on white
+    with torch.no_grad():
+        assert torch.equal(model.encode(x)[0], base.encode(x)[0])
+
+    def error() -> torch.Tensor:
+        return (model.render(model.decode(model.encode(x)[0], 8)) - x).square().mean()
+
+    opt = torch.optim.Adam(model.feedback.parameters(), lr=1e-2)
+    before = float(error())
+    for _ in range(40):
+        opt.zero_grad()
+        error().backward()
+        opt.step()
+    assert float(error()) < 0.97 * before  # the paths of a barely trained decoder move little with z
+    with torch.no_grad():
+        mu = model.encode(x)[0]
+        model.render = lambda dec: torch.zeros(len(x), 3, 32, 32)  # another render: another step
+        assert not torch.allclose(model.encode(x)[0], mu)
+    with pytest.raises(Im2VecError, match="feedback"):
+        ModelConfig(feedback=4, **TINY)
+
+
 def test_bad_image_shape_names_the_argument():
     m = Im2Vec(ModelConfig(**TINY))
     with pytest.raises(ValueError, match="images"):

@@ -18,12 +18,8 @@ class Encoder(nn.Module):
         if image_size < 8 or image_size & (image_size - 1):
             raise ValueError(f"image_size must be a power of two >= 8, got {image_size}")
         self.shape = (channels, image_size, image_size)
-        layers, c_in, c, s = [], channels, width, image_size
-        while s > 4:
-            layers += [nn.Conv2d(c_in, c, 4, 2, 1), nn.GroupNorm(8, c), nn.SiLU()]
-            c_in, c, s = c, min(c * 2, width * 8), s // 2
-        self.net = nn.Sequential(*layers)
-        self.head = nn.Linear(c_in * 16, 2 * latent)
+        self.net, features = conv_stack(image_size, channels, width)
+        self.head = nn.Linear(features, 2 * latent)
 
     def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         if x.dim() != 4 or x.shape[1:] != self.shape:
@@ -32,6 +28,38 @@ class Encoder(nn.Module):
         h = self.net(2 * x - 1).flatten(1)  # (B, C' * 16)
         mu, logvar = self.head(h).chunk(2, dim=-1)  # (B, D) each
         return mu, logvar.clamp(-10, 10)
+
+
+class Feedback(nn.Module):
+    """One render-and-compare pass: the picture, the render of the current latent and their
+    difference ``(B, 3C, S, S)`` through a conv stack like the encoder's, then a linear step
+    from those features and the latent to a correction added to the latent ``(B, D)``.
+
+    The step's layer starts at zero, so a model given a feedback pass (``ModelConfig.feedback``,
+    grown by ``train --init``) encodes what it encoded before and learns the correction from there.
+    """
+
+    def __init__(self, image_size: int, channels: int, latent: int, width: int):
+        super().__init__()
+        self.net, features = conv_stack(image_size, 3 * channels, width)
+        self.step = nn.Linear(features + latent, latent)
+        nn.init.zeros_(self.step.weight)
+        nn.init.zeros_(self.step.bias)
+
+    def forward(self, x: torch.Tensor, seen: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
+        """``x, seen (B, C, S, S)`` in [0, 1], ``z (B, D)`` -> the corrected latent ``(B, D)``."""
+        h = self.net(torch.cat([2 * x - 1, 2 * seen - 1, x - seen], 1)).flatten(1)  # (B, C' * 16)
+        return z + self.step(torch.cat([h, z], -1))
+
+
+def conv_stack(image_size: int, channels: int, width: int) -> tuple[nn.Sequential, int]:
+    """Stride-2 convolutions from ``(B, channels, S, S)`` down to 4x4; returns the stack and the
+    number of features it leaves per picture (flattened)."""
+    layers, c_in, c, s = [], channels, width, image_size
+    while s > 4:
+        layers += [nn.Conv2d(c_in, c, 4, 2, 1), nn.GroupNorm(8, c), nn.SiLU()]
+        c_in, c, s = c, min(c * 2, width * 8), s // 2
+    return nn.Sequential(*layers), c_in * 16
 
 
 def sample_latent(mu: torch.Tensor, logvar: torch.Tensor, sample: bool = True) -> torch.Tensor:

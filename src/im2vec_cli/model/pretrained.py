@@ -16,6 +16,7 @@ from ..errors import ModelError
 from ..files import atomic_write, holds_files, replace_folder
 from ..options import GROWABLE
 from . import build_model
+from .encoder import Feedback
 from .prior import LatentPrior
 
 REPO_MODELS = Path(__file__).resolve().parents[3] / "models"
@@ -182,7 +183,9 @@ def grow_state(state: dict[str, torch.Tensor], old: ModelConfig, new: ModelConfi
     old path ``i mod P_old`` plus noise of the embeddings' initial scale (0.02), so duplicated
     paths can part. A fixed palette may be dropped (``palette=""``: colours learned): its
     ``palette_logits`` go, and the colour head ``codes.color``, which a palette model carries
-    untrained, learns. Every other tensor has the same shape in both configs and is copied.
+    untrained, learns. A feedback pass (``feedback``) added starts from fresh weights whose
+    step is zero (``Feedback``), so the grown model encodes what ``old`` did; one removed is
+    dropped. Every other tensor has the same shape in both configs and is copied.
     """
     import dataclasses
 
@@ -192,7 +195,13 @@ def grow_state(state: dict[str, torch.Tensor], old: ModelConfig, new: ModelConfi
         raise ModelError(f"only {', '.join(GROWABLE)} can change when fine-tuning; the model's {', '.join(bad)} differ")
     if "palette" in changed and new.palette:
         raise ModelError("a fine-tune can drop a model's palette (learn colours), not give it another one")
-    out = {k: v for k, v in state.items() if new.palette or not k.startswith("palette_logits.")}
+    out = {k: v for k, v in state.items() if (new.palette or not k.startswith("palette_logits."))
+           and (new.feedback or not k.startswith("feedback."))}
+    if new.feedback and not old.feedback:
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(seed)
+            fresh = Feedback(new.image_size, new.channels, new.latent, new.enc_width)
+        out.update({f"feedback.{k}": v for k, v in fresh.state_dict().items()})
     step = state.get("codes.step")
     if step is not None and step.shape[0] != new.paths:
         gen = torch.Generator().manual_seed(seed)

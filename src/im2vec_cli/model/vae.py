@@ -13,7 +13,7 @@ from ..options import GROUPINGS
 from ..raster import render_supersampled
 from ..raster.bezier import flatten_closed, polygon_area
 from .decoder import PathCodes, PathDecoder
-from .encoder import Encoder, sample_latent
+from .encoder import Encoder, Feedback, sample_latent
 from .segments import SegmentPredictor, choose_segments
 
 
@@ -62,6 +62,8 @@ class Im2Vec(nn.Module):
             raise ValueError(f"grouping must be one of {GROUPINGS}, got {config.grouping!r}")
         self.config = config
         self.encoder = Encoder(config.image_size, config.channels, config.latent, config.enc_width)
+        self.feedback = (Feedback(config.image_size, config.channels, config.latent, config.enc_width)
+                         if config.feedback else None)
         self.codes = PathCodes(config.latent, config.lstm_hidden, config.code, config.paths)
         self.decoder = PathDecoder(config.code, config.dec_width, config.dec_layers, config.deform, config.deform_width)
         # Distinct start positions: identical initial circles would cancel under even-odd.
@@ -77,8 +79,16 @@ class Im2Vec(nn.Module):
                                   if config.segment_predictor else None)
 
     def encode(self, images: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """``(B, C, S, S)`` in [0, 1] -> ``mu, logvar (B, D)``."""
-        return self.encoder(images)
+        """``(B, C, S, S)`` in [0, 1] -> ``mu, logvar (B, D)``: the encoder's guess, corrected by
+        ``config.feedback`` render-and-compare passes (``Feedback``; the render is an input, not
+        differentiated through)."""
+        mu, logvar = self.encoder(images)
+        for _ in range(self.config.feedback):
+            with torch.no_grad():
+                seen = self.render(self.decode(mu)).to(images.dtype)  # (B, 3, S, S), default k and tau
+            seen = seen.mean(1, keepdim=True) if images.shape[1] == 1 else seen
+            mu = self.feedback(images, seen, mu)
+        return mu, logvar
 
     def decode(self, z: torch.Tensor, segments: int | torch.Tensor | None = None) -> Decoded:
         """``z (B, D)`` -> closed cubic paths.
