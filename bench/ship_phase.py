@@ -14,7 +14,13 @@ models/<set>; metrics.json takes the new figures (the replaced ones kept under
 ``before_phase_<n>``) and a ``phases`` entry; README.md gets a section with the command, the
 config, the code commit and the validation curve. Commit models/<set> afterwards.
 
+``--feedback N`` in place of RUN measures a phase without training: the shipped model with
+N render-and-compare passes (``ModelConfig.feedback``; the weights are the same, its one
+``Feedback`` module applied N times), its latent prior refitted with its own settings to the
+latents those passes give. It ships by the same rule.
+
     python bench/ship_phase.py RUN --set fonts --data DATA [--limit 1000] [--dry-run]
+    python bench/ship_phase.py --feedback 3 --set icons --data DATA
 """
 
 from __future__ import annotations
@@ -40,18 +46,26 @@ CURVE_ROWS = 12  # validation rows of the card's curve (evenly spread, the last 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("run")
+    ap.add_argument("run", nargs="?", help="The phase's run folder (none with --feedback).")
+    ap.add_argument("--feedback", type=int, choices=(1, 2, 3),
+                    help="No run: the shipped model with this many feedback passes, its prior refitted.")
     ap.add_argument("--set", required=True, dest="name")
     ap.add_argument("--data", required=True)
     ap.add_argument("--limit", type=int, default=1000)
     ap.add_argument("--margin", type=float, default=0.01, help="Relative improvement a phase must make to ship.")
     ap.add_argument("--dry-run", action="store_true", help="Measure and tell; change nothing.")
     args = ap.parse_args()
-    run, shipped = Path(args.run), ROOT / "models" / args.name
-    scratch = run / "ship"
+    if (args.run is None) == (args.feedback is None):
+        ap.error("give a RUN folder or --feedback N, not both")
+    shipped = ROOT / "models" / args.name
+    run = Path(args.run) if args.run else None
+    scratch = run / "ship" if run else ROOT / "runs" / f"ship-{args.name}-feedback{args.feedback}"
     if scratch.exists():
         shutil.rmtree(scratch)
-    _, step = export_checkpoint(run, scratch, half=stored_half(shipped))
+    if run:
+        _, step = export_checkpoint(run, scratch, half=stored_half(shipped))
+    else:
+        step = with_passes(shipped, scratch, args.feedback, Path(args.data) / args.name)
     test = eval_files(Path(args.data) / args.name, args.limit, 0)
     assets = sorted((ROOT / "tests" / "assets" / f"{args.name}_test").glob("*.png"))
     before, after = measure(shipped, test, assets), measure(scratch, test, assets)
@@ -61,7 +75,7 @@ def main():
     better = after["test_recon_l2"] < (1 - args.margin) * before["test_recon_l2"]
     print(("ships" if better else "does not beat the shipped model") + f" (step {step}, {len(test)} test images)")
     if better and not args.dry_run:
-        ship(run, scratch, shipped, step, len(test), before, after)
+        ship(run, scratch, shipped, step, len(test), before, after, args.feedback)
         print(f"shipped into {shipped}: commit it")
 
 
@@ -75,16 +89,34 @@ def measure(model_dir: Path, test: list[Path], assets: list[Path]) -> dict[str, 
     return out
 
 
-def ship(run: Path, scratch: Path, shipped: Path, step: int, n_test: int, before: dict, after: dict) -> None:
+def with_passes(shipped: Path, scratch: Path, passes: int, data: Path) -> int:
+    """``scratch``: the shipped model with ``passes`` feedback passes and its prior refitted
+    (same components, shrink and seed) to the latents they give; returns the shipped step."""
+    from im2vec_cli.api import fit_prior
+
+    config = json.loads((shipped / "config.json").read_text())
+    if not config.get("feedback"):
+        raise SystemExit(f"{shipped} has no feedback module to apply again: train one first")
+    shutil.copytree(shipped, scratch)
+    atomic_write(scratch / "config.json", json.dumps({**config, "feedback": passes}, indent=2, sort_keys=True) + "\n")
+    prior = json.loads((shipped / "latent_prior.json").read_text())
+    fit_prior(data, str(scratch), str(scratch), components=prior["components"], seed=prior["seed"],
+              shrink=prior.get("shrink", 1e-4), overwrite=True)
+    return json.loads((shipped / "metrics.json").read_text()).get("step", 0)
+
+
+def ship(run: Path | None, scratch: Path, shipped: Path, step: int, n_test: int, before: dict, after: dict,
+         passes: int | None = None) -> None:
     metrics = json.loads((shipped / "metrics.json").read_text())
     phase = metrics.get("earlier_phases", 0) + len(metrics.get("phases", [])) + 1  # earlier: before this script
-    events = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
-    cfg = json.loads((run / "train_config.json").read_text())
+    events = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()] if run else []
+    cfg = json.loads((run / "train_config.json").read_text()) if run else {"feedback": passes}
     started = _started(events)
-    added, events = phase_span(metrics.get("phases", []), events, step)
+    added, events = phase_span(metrics.get("phases", []), events, step) if run else (0, [])
     entry = {"phase": phase, "date": time.strftime("%Y-%m-%d", time.gmtime()), "commit": _commit(),
-             "steps": step, "steps_added": added, "of_steps": cfg["steps"], "minutes": round(_minutes(events), 1),
-             "run_started": started, "test_images": n_test, "before": before, "after": after}
+             "steps": step, "steps_added": added, "of_steps": cfg.get("steps", step),
+             "minutes": round(_minutes(events), 1), "run_started": started, "test_images": n_test,
+             "before": before, "after": after, **({"feedback": passes} if passes else {})}
     # the card's own figure when it was measured on the whole test split (emoji, icons), else the seeded subset's
     key = "test_recon_l2" if metrics.get("test_images") == n_test else f"test_split_{n_test}_recon_l2"
     replaced = {k: metrics[k] for k in (key, key + "_stderr", "assets_subset_recon_l2",
@@ -117,30 +149,41 @@ def ship(run: Path, scratch: Path, shipped: Path, step: int, n_test: int, before
 
 def card_section(entry: dict, cfg: dict, events: list[dict]) -> str:
     b, a = entry["before"], entry["after"]
-    lines = [f"## Phase {entry['phase']} ({entry['date']}, code at {entry['commit']}): the shipped weights",
-             "", ("`make train-<set> RESUME=1` (`im2vec train DATA --out RUN --resume --minutes ...`, the run of "
+    head = [f"## Phase {entry['phase']} ({entry['date']}, code at {entry['commit']}): the shipped weights", ""]
+    if "feedback" in entry:
+        lines = head + [f"No training: the weights of phase {entry['phase'] - 1} with {entry['feedback']} "
+                        "render-and-compare passes of its one feedback module (`\"feedback\": "
+                        f"{entry['feedback']}` in config.json), the latent prior refitted with its own settings "
+                        f"to the latents they give (`python bench/ship_phase.py --feedback {entry['feedback']}`).", ""]
+        return "\n".join(lines + _figures(b, a, entry["test_images"]))
+    lines = head + [("`make train-<set> RESUME=1` (`im2vec train DATA --out RUN --resume --minutes ...`, the run of "
                   "the last phase continued" if _resumed(entry) else
                   "`make train-<set>` (`im2vec train DATA --init <the shipped model> --config "
                   "models/phases/<set>.json --minutes ...`")
              + f", then `python bench/ship_phase.py`): {_steps(entry)} of {entry['of_steps']} steps in "
              f"{entry['minutes']} min on this machine, with", "",
              "```json", json.dumps({k: v for k, v in cfg.items() if k not in ("class_name", "format_version")}),
-             "```", "", "| figure | before | after |", "|---|---|---|",
-             f"| test split, {entry['test_images']} images: recon L2 | {b['test_recon_l2']:.5f} ± "
-             f"{b['test_recon_l2_stderr']:.5f} | {a['test_recon_l2']:.5f} ± {a['test_recon_l2_stderr']:.5f} |"]
-    for k, label in (("test_outline_iou", "IoU@4x"), ("test_chamfer_px", "Chamfer (px)")):
-        if k in a:
-            lines.append(f"| test split: {label} | {b[k]:.4f} | {a[k]:.4f} |")
-    lines += [f"| 64 test-split assets: recon L2 | {b['assets_recon_l2']:.5f} | {a['assets_recon_l2']:.5f} |",
-              f"| 64 assets, fitted (`eval --fit`) | {b['assets_fitted_recon_l2']:.5f} | "
-              f"{a['assets_fitted_recon_l2']:.5f} |", "", "Validation (the run's `metrics.jsonl`):", "",
-              "| step | min | val pyramid L2 | val MSE |", "|---|---|---|---|"]
+             "```", "", *_figures(b, a, entry["test_images"]), "", "Validation (the run's `metrics.jsonl`):", "",
+             "| step | min | val pyramid L2 | val MSE |", "|---|---|---|---|"]
     val = [e for e in events if e["event"] == "val"]
     t0 = min(e["time"] for e in events if "time" in e)
     rows = sorted({round(i * (len(val) - 1) / (CURVE_ROWS - 1)) for i in range(CURVE_ROWS)}) if val else []
     for e in (val[i] for i in rows):
         lines.append(f"| {e['step']} | {(e['time'] - t0) / 60:.0f} | {e['val_pyramid_l2']:.4f} | {e['val_mse']:.4f} |")
     return "\n".join(lines)
+
+
+def _figures(b: dict, a: dict, n_test: int) -> list[str]:
+    """The card's before / after table."""
+    lines = ["| figure | before | after |", "|---|---|---|",
+             f"| test split, {n_test} images: recon L2 | {b['test_recon_l2']:.5f} ± "
+             f"{b['test_recon_l2_stderr']:.5f} | {a['test_recon_l2']:.5f} ± {a['test_recon_l2_stderr']:.5f} |"]
+    for k, label in (("test_outline_iou", "IoU@4x"), ("test_chamfer_px", "Chamfer (px)")):
+        if k in a:
+            lines.append(f"| test split: {label} | {b[k]:.4f} | {a[k]:.4f} |")
+    return lines + [f"| 64 test-split assets: recon L2 | {b['assets_recon_l2']:.5f} | {a['assets_recon_l2']:.5f} |",
+                    f"| 64 assets, fitted (`eval --fit`) | {b['assets_fitted_recon_l2']:.5f} | "
+                    f"{a['assets_fitted_recon_l2']:.5f} |"]
 
 
 def phase_span(phases: list[dict], events: list[dict], step: int) -> tuple[int, list[dict]]:
@@ -159,6 +202,9 @@ def phase_span(phases: list[dict], events: list[dict], step: int) -> tuple[int, 
 
 def training_with(training: dict, entry: dict) -> dict:
     """The card's ``training`` summary (steps, wall, phases) with this phase added."""
+    if "feedback" in entry:  # no run: steps and wall stay
+        how = f"phase {entry['phase']}: {entry['feedback']} feedback passes at inference, no training"
+        return {**training, "phases": "; ".join(x for x in (training.get("phases"), how) if x)}
     how = (f"the run of phase {entry['phase'] - 1} resumed to {entry['steps']:,} of its {entry['of_steps']:,} steps"
            if _resumed(entry) else f"make train-<set> from phase {entry['phase'] - 1}, {entry['steps']:,} steps")
     return {**training, "steps": training.get("steps", 0) + entry["steps_added"],
@@ -169,7 +215,7 @@ def training_with(training: dict, entry: dict) -> dict:
 
 def _resumed(entry: dict) -> bool:
     """Whether the phase continued a run one of whose phases had shipped (``phase_span``)."""
-    return entry.get("steps_added", entry["steps"]) != entry["steps"]
+    return "feedback" not in entry and entry.get("steps_added", entry["steps"]) != entry["steps"]
 
 
 def _steps(entry: dict) -> str:

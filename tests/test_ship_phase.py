@@ -1,7 +1,7 @@
 """bench/ship_phase.py's count of what a phase adds (issue 37): a run resumed after one of its
 phases shipped must not count that phase's steps and minutes twice."""
 
-from bench.ship_phase import _minutes, _steps, phase_span, training_with
+from bench.ship_phase import _minutes, _steps, card_section, phase_span, training_with
 
 
 def _run(first_time: float, steps: range) -> list[dict]:
@@ -32,3 +32,20 @@ def test_the_cards_training_summary_adds_the_phase():
                      "phase 5: the run of phase 4 resumed to 4,000 of its 4,000 steps"}
     fresh = training_with({}, {"phase": 7, "steps": 4000, "steps_added": 4000, "of_steps": 4000, "minutes": 47.1})
     assert fresh == {"steps": 4000, "wall": "47 min", "phases": "phase 7: make train-<set> from phase 6, 4,000 steps"}
+
+
+def test_a_phase_of_feedback_passes_adds_no_steps_and_says_so_on_the_card():
+    entry = {"phase": 11, "date": "2026-12-04", "commit": "abc1234", "steps": 18238, "steps_added": 0,
+             "of_steps": 18238, "minutes": 0.0, "test_images": 749, "feedback": 3,
+             "before": {"test_recon_l2": 0.0511, "test_recon_l2_stderr": 0.0013, "assets_recon_l2": 0.0479,
+                        "assets_fitted_recon_l2": 0.0043},
+             "after": {"test_recon_l2": 0.0460, "test_recon_l2_stderr": 0.0012, "assets_recon_l2": 0.0430,
+                       "assets_fitted_recon_l2": 0.0042}}
+    before = {"steps": 18238, "wall": "41 min + 14 min", "phases": "phase 10: make train-<set> from phase 9"}
+    assert training_with(before, entry) == {**before, "phases": "phase 10: make train-<set> from phase 9; "
+                                            "phase 11: 3 feedback passes at inference, no training"}
+    assert _steps(entry) == "18238"  # not a resumed run
+    card = card_section(entry, {"feedback": 3}, [])
+    assert "No training: the weights of phase 10 with 3 render-and-compare passes" in card
+    assert "| test split, 749 images: recon L2 | 0.05110 ± 0.00130 | 0.04600 ± 0.00120 |" in card
+    assert "Validation" not in card

@@ -127,6 +127,23 @@ def test_a_feedback_pass_grown_in_encodes_as_before_then_learns_from_the_render(
         ModelConfig(feedback=4, **TINY)
 
 
+def test_more_feedback_passes_apply_the_one_module_again():
+    """A 1-pass model's weights load into a 3-pass one (``bench/ship_phase.py --feedback``),
+    which applies its one ``Feedback`` module three times, each to the render of the last latent."""
+    torch.manual_seed(0)
+    one = Im2Vec(ModelConfig(feedback=1, palette="#000000", **TINY))
+    torch.nn.init.normal_(one.feedback.step.weight, std=0.05)  # a trained step is not zero
+    three = Im2Vec(ModelConfig(feedback=3, palette="#000000", **TINY))
+    three.load_state_dict(one.state_dict())  # strict: the same keys
+    x = torch.rand(2, 3, 32, 32)
+    with torch.no_grad():
+        mu = one.encoder(x)[0]
+        for _ in range(3):
+            mu = one.feedback(x, one.render(one.decode(mu)), mu)
+        assert torch.allclose(three.encode(x)[0], mu, atol=1e-6)
+        assert not torch.allclose(three.encode(x)[0], one.encode(x)[0], atol=1e-4)
+
+
 def test_bad_image_shape_names_the_argument():
     m = Im2Vec(ModelConfig(**TINY))
     with pytest.raises(ValueError, match="images"):
