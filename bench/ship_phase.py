@@ -26,6 +26,7 @@ latents those passes give. It ships by the same rule.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import shutil
 import subprocess
@@ -56,7 +57,7 @@ def main():
     ap.add_argument("--dry-run", action="store_true", help="Measure and tell; change nothing.")
     args = ap.parse_args()
     if (args.run is None) == (args.feedback is None):
-        ap.error("give a RUN folder or --feedback N, not both")
+        ap.error("give either a RUN folder or --feedback N")
     shipped = ROOT / "models" / args.name
     run = Path(args.run) if args.run else None
     scratch = run / "ship" if run else ROOT / "runs" / f"ship-{args.name}-feedback{args.feedback}"
@@ -93,12 +94,13 @@ def with_passes(shipped: Path, scratch: Path, passes: int, data: Path) -> int:
     """``scratch``: the shipped model with ``passes`` feedback passes and its prior refitted
     (same components, shrink and seed) to the latents they give; returns the shipped step."""
     from im2vec_cli.api import fit_prior
+    from im2vec_cli.config import ModelConfig
 
-    config = json.loads((shipped / "config.json").read_text())
-    if not config.get("feedback"):
+    config = ModelConfig.load(shipped / "config.json")
+    if not config.feedback:
         raise SystemExit(f"{shipped} has no feedback module to apply again: train one first")
     shutil.copytree(shipped, scratch)
-    atomic_write(scratch / "config.json", json.dumps({**config, "feedback": passes}, indent=2, sort_keys=True) + "\n")
+    atomic_write(scratch / "config.json", dataclasses.replace(config, feedback=passes).to_json())
     prior = json.loads((shipped / "latent_prior.json").read_text())
     fit_prior(data, str(scratch), str(scratch), components=prior["components"], seed=prior["seed"],
               shrink=prior.get("shrink", 1e-4), overwrite=True)
@@ -109,8 +111,10 @@ def ship(run: Path | None, scratch: Path, shipped: Path, step: int, n_test: int,
          passes: int | None = None) -> None:
     metrics = json.loads((shipped / "metrics.json").read_text())
     phase = metrics.get("earlier_phases", 0) + len(metrics.get("phases", [])) + 1  # earlier: before this script
-    events = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()] if run else []
-    cfg = json.loads((run / "train_config.json").read_text()) if run else {"feedback": passes}
+    events, cfg = [], {}  # no run (``passes``): no steps, no curve
+    if run:
+        events = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
+        cfg = json.loads((run / "train_config.json").read_text())
     started = _started(events)
     added, events = phase_span(metrics.get("phases", []), events, step) if run else (0, [])
     entry = {"phase": phase, "date": time.strftime("%Y-%m-%d", time.gmtime()), "commit": _commit(),
