@@ -124,14 +124,16 @@ demo: install
 
 # A training phase of a shipped model (issue 37): at most PHASE_MINUTES (a session ends hard and takes runs/
 # with it) from models/<set>, the last shipped phase, with models/phases/<set>.json; then bench/ship_phase.py
-# ships it into models/<set> with its card when it beats it on the test split: commit models/<set> after.
+# ships it into models/<set> with its card (and the commit it trained at) when it beats it on the test split:
+# commit models/<set> after.
 # Needs $(DATA)/<set> (make data-<set>). RESUME=1 continues runs/<set>-phase exactly (with its own configs)
 # instead of starting it afresh.
 PHASE_MINUTES ?= 72
 train-fonts train-mnist train-emoji train-icons: train-%: install
+	commit=$$(git describe --always --dirty) && \
 	.venv/bin/im2vec train $(DATA)/$* --out runs/$*-phase --minutes $(PHASE_MINUTES) \
-	  $(if $(RESUME),--resume,--config models/phases/$*.json --init models/$* --overwrite)
-	$(PY) bench/ship_phase.py runs/$*-phase --set $* --data $(DATA)
+	  $(if $(RESUME),--resume,--config models/phases/$*.json --init models/$* --overwrite) && \
+	$(PY) bench/ship_phase.py runs/$*-phase --set $* --data $(DATA) --commit $$commit
 
 data-fonts: install
 	apt-get update -q && apt-get install -y -q $$(cat ../shared/data/font-packages.txt)

@@ -19,7 +19,7 @@ N render-and-compare passes (``ModelConfig.feedback``; the weights are the same,
 ``Feedback`` module applied N times), its latent prior refitted with its own settings to the
 latents those passes give. It ships by the same rule.
 
-    python bench/ship_phase.py RUN --set fonts --data DATA [--limit 1000] [--dry-run]
+    python bench/ship_phase.py RUN --set fonts --data DATA [--limit 1000] [--commit SHA] [--dry-run]
     python bench/ship_phase.py --feedback 3 --set icons --data DATA
 """
 
@@ -54,6 +54,8 @@ def main():
     ap.add_argument("--data", required=True)
     ap.add_argument("--limit", type=int, default=1000)
     ap.add_argument("--margin", type=float, default=0.01, help="Relative improvement a phase must make to ship.")
+    ap.add_argument("--commit", default=None,
+                    help="The code commit the run trained at, for the card (default: the checkout's now).")
     ap.add_argument("--dry-run", action="store_true", help="Measure and tell; change nothing.")
     args = ap.parse_args()
     if (args.run is None) == (args.feedback is None):
@@ -76,7 +78,7 @@ def main():
     better = after["test_recon_l2"] < (1 - args.margin) * before["test_recon_l2"]
     print(("ships" if better else "does not beat the shipped model") + f" (step {step}, {len(test)} test images)")
     if better and not args.dry_run:
-        ship(run, scratch, shipped, step, len(test), before, after, args.feedback)
+        ship(run, scratch, shipped, step, len(test), before, after, args.feedback, args.commit or _commit())
         print(f"shipped into {shipped}: commit it")
 
 
@@ -108,7 +110,7 @@ def with_passes(shipped: Path, scratch: Path, passes: int, data: Path) -> int:
 
 
 def ship(run: Path | None, scratch: Path, shipped: Path, step: int, n_test: int, before: dict, after: dict,
-         passes: int | None = None) -> None:
+         passes: int | None = None, commit: str = "unknown") -> None:
     metrics = json.loads((shipped / "metrics.json").read_text())
     phase = metrics.get("earlier_phases", 0) + len(metrics.get("phases", [])) + 1  # earlier: before this script
     events, cfg = [], {}  # no run (``passes``): no steps, no curve
@@ -117,7 +119,7 @@ def ship(run: Path | None, scratch: Path, shipped: Path, step: int, n_test: int,
         cfg = json.loads((run / "train_config.json").read_text())
     started = _started(events)
     added, events = phase_span(metrics.get("phases", []), events, step) if run else (0, [])
-    entry = {"phase": phase, "date": time.strftime("%Y-%m-%d", time.gmtime()), "commit": _commit(),
+    entry = {"phase": phase, "date": time.strftime("%Y-%m-%d", time.gmtime()), "commit": commit,
              "steps": step, "steps_added": added, "of_steps": cfg.get("steps", step),
              "minutes": round(_minutes(events), 1), "run_started": started, "test_images": n_test,
              "before": before, "after": after, **({"feedback": passes} if passes else {})}

@@ -1,7 +1,9 @@
 """bench/ship_phase.py's count of what a phase adds (issue 37): a run resumed after one of its
-phases shipped must not count that phase's steps and minutes twice."""
+phases shipped must not count that phase's steps and minutes twice; and what shipping writes."""
 
-from bench.ship_phase import _minutes, _steps, card_section, phase_span, training_with
+import json
+
+from bench.ship_phase import _minutes, _steps, card_section, phase_span, ship, training_with
 
 
 def _run(first_time: float, steps: range) -> list[dict]:
@@ -49,3 +51,23 @@ def test_a_phase_of_feedback_passes_adds_no_steps_and_says_so_on_the_card():
     assert "No training: the weights of phase 10 with 3 render-and-compare passes" in card
     assert "| test split, 749 images: recon L2 | 0.05110 ± 0.00130 | 0.04600 ± 0.00120 |" in card
     assert "Validation" not in card
+
+
+def test_shipping_names_the_commit_it_is_given_and_replaces_only_the_model_files(tmp_path):
+    shipped, scratch = tmp_path / "shipped", tmp_path / "scratch"
+    shipped.mkdir()
+    scratch.mkdir()
+    (shipped / "README.md").write_text("# card\n")
+    (shipped / "segments.json").write_text("{}")
+    (shipped / "config.json").write_text('{"feedback": 1}')
+    (scratch / "config.json").write_text('{"feedback": 2}')
+    (shipped / "metrics.json").write_text(json.dumps({"step": 100, "test_images": 10, "test_recon_l2": 0.02,
+                                                      "training": {"steps": 100, "wall": "5 min"}}))
+    figures = {"test_recon_l2": 0.02, "test_recon_l2_stderr": 0.001, "assets_recon_l2": 0.02,
+               "assets_fitted_recon_l2": 0.001}
+    ship(None, scratch, shipped, 100, 10, figures, {**figures, "test_recon_l2": 0.01}, passes=2, commit="fdc60e9")
+    metrics = json.loads((shipped / "metrics.json").read_text())
+    assert metrics["phases"][-1]["commit"] == "fdc60e9" and metrics["test_recon_l2"] == 0.01
+    assert metrics["before_phase_1"]["test_recon_l2"] == 0.02 and metrics["step"] == 100
+    assert "## Phase 1 (" in (shipped / "README.md").read_text() and "code at fdc60e9)" in (shipped / "README.md").read_text()
+    assert (shipped / "config.json").read_text() == '{"feedback": 2}' and (shipped / "segments.json").is_file()
