@@ -175,7 +175,7 @@ def card_section(entry: dict, cfg: dict, events: list[dict]) -> str:
     t0 = min(e["time"] for e in events if "time" in e)
     rows = sorted({round(i * (len(val) - 1) / (CURVE_ROWS - 1)) for i in range(CURVE_ROWS)}) if val else []
     for e in (val[i] for i in rows):
-        lines.append(f"| {e['step']} | {(e['time'] - t0) / 60:.0f} | {e['val_pyramid_l2']:.4f} | {e['val_mse']:.4f} |")
+        lines.append(f"| {e['step']} | {(e['time'] - t0) / 60:.0f} | {e['val_pyramid_l2']:.4g} | {e['val_mse']:.4g} |")
     return "\n".join(lines)
 
 

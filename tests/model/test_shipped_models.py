@@ -61,10 +61,11 @@ def test_default_model_has_a_quality_check():
     (REPO_MODELS / n / "metrics.json").read_text())])
 def test_fitted_quality_on_test_split_subset(name):
     # the paths fitted to each image (`eval --fit`, what `interpolate` draws) keep the figure of
-    # docs/results/ratios.md, and stay well below the encoder's guess (by a quarter at least: the
-    # phases of issue 37 close that gap from the encoder's side, mnist to 0.61x of it)
+    # docs/results/ratios.md, and stay below the encoder's guess (by a tenth at least: the phases
+    # of issue 37 close that gap from the encoder's side, mnist's fitted paths to 0.75x of its guess,
+    # near what a filled outline can draw: docs/results/fill-bound.md)
     card = json.loads((REPO_MODELS / name / "metrics.json").read_text())
     files = sorted((ASSETS.parent / card.get("assets_dir", f"{name}_test")).glob("*.png"))
     res = reconstruction_l2(from_pretrained(name), files, outlines=False, fit=True)
     assert res["recon_l2"] <= card["assets_subset_fitted_recon_l2"] * 1.1 + 1e-4, res
-    assert res["recon_l2"] < 0.75 * card["assets_subset_recon_l2"], res
+    assert res["recon_l2"] < 0.9 * card["assets_subset_recon_l2"], res
