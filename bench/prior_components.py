@@ -11,7 +11,10 @@ score the held-out ones far lower unless their covariances are shrunk towards a 
 (``shrink``: added to each diagonal, in units of the latents' mean variance). The rule, fixed
 before the test split is looked at: the pair with the best validation log-likelihood; it is
 then scored once on the test split beside the stored prior's, and written with
-`im2vec fit-prior --components K --shrink S`.
+`im2vec fit-prior --components K --shrink S` when its samples, looked at and scored by their
+generation L2 (RESULTS.md Table 2), are no worse than the stored prior's: a held-out likelihood
+measures the density, not what its draws look like (on the feedback models' latents both sets'
+picks were declined for that: models/emoji/README.md, models/icons/README.md).
 
     python bench/prior_components.py --model models/emoji --data DATA/emoji [--markdown F]
 """
