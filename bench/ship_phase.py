@@ -113,12 +113,12 @@ def ship(run: Path | None, scratch: Path, shipped: Path, step: int, n_test: int,
          passes: int | None = None, commit: str = "unknown") -> None:
     metrics = json.loads((shipped / "metrics.json").read_text())
     phase = metrics.get("earlier_phases", 0) + len(metrics.get("phases", [])) + 1  # earlier: before this script
-    events, cfg = [], {}  # no run (``passes``): no steps, no curve
+    events, cfg, started, added = [], {}, None, 0  # no run (``passes``): no steps, no curve
     if run:
         events = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
         cfg = json.loads((run / "train_config.json").read_text())
-    started = _started(events)
-    added, events = phase_span(metrics.get("phases", []), events, step) if run else (0, [])
+        started = _started(events)
+        added, events = phase_span(metrics.get("phases", []), events, step)
     entry = {"phase": phase, "date": time.strftime("%Y-%m-%d", time.gmtime()), "commit": commit,
              "steps": step, "steps_added": added, "of_steps": cfg.get("steps", step),
              "minutes": round(_minutes(events), 1), "run_started": started, "test_images": n_test,

@@ -69,5 +69,6 @@ def test_shipping_names_the_commit_it_is_given_and_replaces_only_the_model_files
     metrics = json.loads((shipped / "metrics.json").read_text())
     assert metrics["phases"][-1]["commit"] == "fdc60e9" and metrics["test_recon_l2"] == 0.01
     assert metrics["before_phase_1"]["test_recon_l2"] == 0.02 and metrics["step"] == 100
-    assert "## Phase 1 (" in (shipped / "README.md").read_text() and "code at fdc60e9)" in (shipped / "README.md").read_text()
+    card = (shipped / "README.md").read_text()
+    assert "## Phase 1 (" in card and "code at fdc60e9)" in card
     assert (shipped / "config.json").read_text() == '{"feedback": 2}' and (shipped / "segments.json").is_file()
