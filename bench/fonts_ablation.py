@@ -4,7 +4,7 @@ Every row scores the same test glyphs by the paper's Table 1 figure (MSE on [0, 
 the cairosvg render of the SVG against the input), one factor at a time, from the shipped
 ``fonts`` model:
 
-- *amortised*: ``z = mu`` decoded at k = 12 (what ``vectorize --no-refine`` writes) and at k = 25;
+- *amortised*: ``z = mu`` decoded at k = 12 (what ``vectorize --no-refine --parts model`` writes) and at k = 25;
 - *z optimised*: the latent fitted to each glyph (Adam through our renderer): the amortisation
   gap of the encoder;
 - *path codes optimised*: the LSTM's per-path codes fitted directly (the path decoder kept): what
@@ -110,7 +110,7 @@ def main():
         t0 = time.perf_counter()
         with torch.no_grad():
             dec = model.decode(mu, k)
-        row(f"amortised, k = {k}", dec, t0, "vectorize --no-refine")
+        row(f"amortised, k = {k}", dec, t0, "vectorize --no-refine --parts model")
     base = model.decode(mu, 12)
 
     t0 = time.perf_counter()

@@ -214,6 +214,8 @@ def tools(model, two_tone: bool) -> dict:
         "im2vec (default)": im2vec(),
         f"im2vec (--tolerance {COMPACT_TOL:g})": im2vec(tolerance=COMPACT_TOL),
         "im2vec (--parts model)": im2vec(parts="model"),
+        "im2vec (--no-refine)": im2vec(refine=False),
+        "im2vec (--no-refine --parts model)": im2vec(refine=False, parts="model"),
     }
     if two_tone:
         out["potrace"] = lambda r: potrace(r["png"])

@@ -2,7 +2,7 @@
 
 For each set: the reconstruction L2 (``evaluate.reconstruction_l2``: the cairosvg render of the
 SVG against each image, at its own size) of the shipped model's encoder guess (what `vectorize
---no-refine` writes), of its paths fitted to each image (``--fit``: ``project.project``, what
+--no-refine --parts model` writes), of its paths fitted to each image (``--fit``: ``project.project``, what
 `interpolate` draws), and of the ImageVAE baseline (models/baselines/<set>-imagevae) on the
 same images, with the ratios to the baseline. Images: the 64 test-split images of
 tests/assets/<set>_test (never trained on), or with ``--data DATA`` a seeded subset of

@@ -5,7 +5,7 @@ script then exports the run's checkpoint as the shipped model is stored (fp16 wh
 measures it and the shipped model on the same images:
 
 - the test split (a seeded subset of ``--limit`` images of DATA/<set>/test): reconstruction L2
-  of the SVG ``vectorize --no-refine`` writes, and the outline figures where the set has them;
+  of the SVG ``vectorize --no-refine --parts model`` writes, and the outline figures where the set has them;
 - the 64 images of tests/assets/<set>_test (the figure ``tests/model/test_shipped_models.py``
   checks), amortised and fitted (``eval --fit``);
 

@@ -5,7 +5,8 @@ training split (default: Liberation Sans Narrow, 4 styles, 248 glyphs, from the 
 package fonts-liberation), rendered exactly like the Fonts dataset, with the true outline
 from fontTools.
 
-Tools, on the same images in one run: im2vec amortised, im2vec refined (`--effort fast`, the
+Tools, on the same images in one run: im2vec amortised (the model's own paths, `--no-refine --parts
+model`, and its guess drawn clean, `--no-refine`), im2vec refined (`--effort fast`, the
 default, and `--effort best`), potrace (defaults),
 potrace on a 4x bilinear upsample, vtracer (binary mode), and the trivial baseline (bilinear
 4x upsample thresholded at 0.5).
@@ -252,6 +253,9 @@ def _tools(model, glyphs, args) -> dict:
     def amortised(g):
         return to_svg(vectorize(model, [images[g["name"]]], **opts)[0])
 
+    def amortised_clean(g):
+        return to_svg(vectorize(model, [images[g["name"]]], clean=True, **opts)[0])
+
     def refined(g):  # the model's own parts: bench/outlines.py measures the clean outlines (the default)
         return to_svg(refine(model, images[g["name"]], settings=EFFORTS["best"], parts="model", **opts)[0])
 
@@ -266,6 +270,7 @@ def _tools(model, glyphs, args) -> dict:
 
     tools = {
         "im2vec amortised": amortised,
+        "im2vec amortised, clean": amortised_clean,
         FAST_NAME: None if args.skip_refined else refined_fast,
         "im2vec refined": None if args.skip_refined else refined,
         COMPACT_NAME: None if args.skip_refined or opts or model.segment_predictor is None else refined_compact,
@@ -316,7 +321,8 @@ def markdown(rows: dict, n: int, args) -> str:
     opts += f" --quality {args.quality}" if args.quality else ""
     note = (f"\n\n*{COMPACT_NAME}*: `im2vec vectorize IMG --effort best --segments auto --quality {COMPACT['quality']:g} "
             f"--simplify {COMPACT['simplify']:g}`; *{FAST_NAME}*: `im2vec vectorize IMG` (the default for one image, "
-            f"`--effort fast`); *im2vec refined*: `im2vec vectorize IMG --effort best`.")
+            f"`--effort fast`); *im2vec refined*: `im2vec vectorize IMG --effort best`; *im2vec amortised*: "
+            f"`im2vec vectorize IMG --no-refine --parts model`; *im2vec amortised, clean*: `im2vec vectorize IMG --no-refine`.")
     head = (f"# Vectorize fidelity against potrace and vtracer\n\nWritten by `make bench-vectorize` "
             f"({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} CPU cores, torch "
             f"{torch.__version__}). All tools on the same images in one run; see bench/vectorize.py for the "

@@ -342,7 +342,7 @@ def _outlines(results) -> list[str]:
             "IoU of the insides at 4x (cairosvg renders) and the symmetric Chamfer distance between the",
             "SVG outline and the font's own outline (fontTools), in input pixels. Only fonts: the emoji and",
             "icon sources are coloured drawings that a dark-inside mask does not describe. Amortised (one pass of the",
-            "model, no refinement: `vectorize --no-refine`). docs/VECTORIZE.md has the refined figures",
+            "model, no refinement: the model's own paths, `vectorize --no-refine --parts model`). docs/VECTORIZE.md has the refined figures",
             "beside potrace and vtracer.",
             "",
             "| model | IoU at 4x | Chamfer (px) | glyphs |",

@@ -60,7 +60,7 @@ def reconstruction_l2(
     take are counted in ``outlines_unread`` (and told to ``on_skip``).
     For the ImageVAE baseline: the MSE only. ``outlines=False`` skips the outline metrics.
     ``fit``: the model's paths fitted to each image (``project.project``, what ``interpolate``
-    draws) instead of the encoder's guess (what ``vectorize --no-refine`` writes)."""
+    draws) instead of the encoder's guess (what ``vectorize --no-refine --parts model`` writes)."""
     if fit and (model.raster_output or segments == "auto"):
         raise ValueError("fit takes a vector model and a fixed segment count")
     skip = on_skip or (lambda msg: None)

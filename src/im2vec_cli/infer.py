@@ -95,13 +95,15 @@ def segment_counts(model: Im2Vec, z: torch.Tensor, segments: int | str | None,
 
 @torch.no_grad()
 def vectorize(model: Im2Vec, images: list[torch.Tensor], *, segments: int | str | None = None,
-              quality: float | None = None, max_paths: int | None = None) -> list[VectorImage]:
+              quality: float | None = None, max_paths: int | None = None, clean: bool = False) -> list[VectorImage]:
     """Amortised vectorisation (``z = mu``) of images ``(3, H_i, W_i)``, in one batch.
 
     ``segments``: per path, default the model's; ``"auto"`` picks each path's count for
     ``quality`` (``segment_counts``).
     Overlapping paths of an even-odd shape are filled rather than cut out where that is
     nearer the image (``overlaps.resolve_overlaps``: no white seams where two strokes meet).
+    ``clean``: each result drawn as non-overlapping outer contours and holes, its hairline
+    seams, cracks and slivers mended (``clean_guess``), not as the model's overlapping paths.
     Flat images (one colour, e.g. blank) skip the model: white gives an empty SVG, any
     other colour one canvas-sized square.
     """
@@ -113,8 +115,19 @@ def vectorize(model: Im2Vec, images: list[torch.Tensor], *, segments: int | str 
         mu, _ = model.encode(torch.stack(xs).to(dev))
         dec = model.decode(mu, segment_counts(model, mu, segments, quality))
         for j, (i, p) in enumerate(zip(todo, places)):
-            out[i] = resolve_overlaps(to_vector(dec, j, p, max_paths=max_paths), images[i])
+            vec = resolve_overlaps(to_vector(dec, j, p, max_paths=max_paths), images[i])
+            out[i] = clean_guess(vec, p, model.config.image_size) if clean else vec
     return out  # type: ignore[return-value]
+
+
+def clean_guess(vec: VectorImage, place: Placement, size: int) -> VectorImage:
+    """A decoded image in its input's pixel frame drawn clean (``outline.cleaned``) at the
+    scale the model drew it, a ``size`` px square over the input's ``place``, and mapped back:
+    the seams it mends and the specks it drops are measured in model pixels, and the work is
+    bounded by the model's size whatever the input's."""
+    k = size / place.side
+    w, h = max(1, round(place.width * k)), max(1, round(place.height * k))
+    return cleaned(vec.rescaled(w, h)).rescaled(vec.width, vec.height)
 
 
 @torch.no_grad()

@@ -45,10 +45,11 @@ class VectorizeOptions:
     speckle: with ``parts="clean"``, pieces and holes smaller than this many px a side are
         dropped from scans and line art (default: 2 px, and 1 more per 256 px of the
         picture's longer side).
-    parts: with ``refine``, ``"clean"`` (each colour one path of non-overlapping outer
-        contours and holes, from the model's paths or the picture's own regions, whichever
-        fits better) or ``"model"`` (the model's own paths, the same for every picture of
-        its class).
+    parts: ``"clean"`` (each colour one path of non-overlapping outer contours and holes:
+        with ``refine`` from the model's paths or the picture's own regions, whichever fits
+        better; without, the model's guess with its seams, cracks and slivers mended,
+        ``infer.clean_guess``) or ``"model"`` (the model's own overlapping paths, the same for
+        every picture of its class).
     tolerance: with ``parts="clean"``, how far (input pixels) the cubics may stray from the
         traced outline before another segment is added (default 0.5); larger is more compact.
     colors: with ``parts="clean"``, the palette size of a multi-colour picture (default:

@@ -27,9 +27,10 @@ MAX_SVG_BYTES = 32 * 2**20  # `render` input: an SVG larger than this is refused
 @click.option("--max-paths", "--paths", "max_paths", type=click.IntRange(1), default=None,
               help="Keep at most N paths (the largest).")
 @click.option("--parts", type=click.Choice(PARTS), default="clean", show_default=True,
-              help="With refinement: clean (each colour one path of outer contours and holes, no overlaps; from "
-                   "the model's paths or the image's own regions, whichever fits better) or model (the model's own "
-                   "paths, the same for every image of its class: for animation and the latent space).")
+              help="clean (each colour one path of outer contours and holes, no overlaps; with refinement from "
+                   "the model's paths or the image's own regions, whichever fits better; with --no-refine the model's "
+                   "guess with its seams mended) or model (the model's own overlapping paths, the same for every "
+                   "image of its class: for animation and the latent space).")
 @click.option("--tolerance", type=Finite(0, min_open=True), default=None,
               help="With --parts clean: how far (input px) a curve may stray from the traced outline before a "
                    "segment is added; smaller is more exact, larger more compact. [0.5]")
@@ -40,7 +41,8 @@ MAX_SVG_BYTES = 32 * 2**20  # `render` input: an SVG larger than this is refused
                    "[5e-4]; smaller is more exact, larger more compact.")
 @click.option("--refine/--no-refine", default=True,
               help="Fit the paths to each input by gradient descent through the renderer; several inputs are "
-                   "refined in batches. --no-refine: the model's guess alone (milliseconds). [on]")
+                   "refined in batches. --no-refine: the model's guess alone (tens of milliseconds; with --parts model, "
+                   "milliseconds). [on]")
 @click.option("--effort", type=click.Choice(EFFORTS), default="fast", show_default=True,
               help="With refinement: draft (clean outlines traced and fitted, not polished: the quickest), fast "
                    "(about 0.25 s for one 64 px glyph on 2 CPU cores, 40 ms each in a folder of them) or best "
@@ -129,7 +131,6 @@ _APPLIES = {
     "preset": (lambda p: p["refine"] and p["parts"] == "clean", "it shapes --parts clean with refinement"),
     "speckle": (lambda p: p["refine"] and p["parts"] == "clean", "it shapes --parts clean with refinement"),
     "effort": (lambda p: p["refine"], "it sets how hard refinement works, and --no-refine skips it"),
-    "parts": (lambda p: p["refine"], "--no-refine writes the model's own paths"),
     "compile_": (lambda p: p["refine"], "it compiles the refinement, and --no-refine skips it"),
     "quality": (lambda p: p["segments"] == "auto", "it sets --segments auto's choice"),
 }

@@ -65,7 +65,7 @@ def _sample_quality(model, features_dir, data_dir, samples, seed, prior, segment
 @click.option("--pairs", type=click.IntRange(1), default=250, show_default=True, help="Training pairs (interpolation).")
 @click.option("--segments", default=None, help="Cubic segments per path (default: the model's).")
 @click.option("--fit", is_flag=True, help="Reconstruct with the model's paths fitted to each image (what `interpolate` "
-              "draws), not the encoder's guess (what `vectorize --no-refine` writes).")
+              "draws), not the encoder's guess (what `vectorize --no-refine --parts model` writes).")
 @click.option("-o", "--output", default="-", show_default=True, callback=nonempty, help="JSON file or -.")
 @click.option("--markdown", default=None, callback=nonempty, help="Also write the figures as a markdown table to this file.")
 @click.option("--sweep", default=None, metavar="K1-K2",

@@ -14,7 +14,7 @@ from ..infer import flat_result
 from ..model.vae import Im2Vec
 from ..options import MAX_WORK_PIXELS, PARTS
 from ..trace import Reading, clean_outlines, read, simplify
-from ..vector import VectorImage, VectorShape
+from ..vector import VectorImage
 from .settings import RefineSettings
 from .stages import Refinement
 
@@ -119,7 +119,7 @@ def refine_batch(
         for p, r in zip(model.parameters(), req):
             p.requires_grad_(r)
     notes = [{"kind": r.kind, "reading": r.figures or {}} for r in readings] if readings else [{}] * len(out)
-    return [(_rescaled(v, size), {**info, **n}) for (v, info), size, n in zip(out, sizes, notes)]
+    return [(v.rescaled(size[1], size[0]), {**info, **n}) for (v, info), size, n in zip(out, sizes, notes)]
 
 
 def _sizes(images: list[torch.Tensor], parts: str) -> list[tuple[int, int]]:
@@ -153,15 +153,6 @@ def _workable(image: torch.Tensor, most: int) -> torch.Tensor:
     f = (most / (h * w)) ** 0.5
     size = (max(4, int(h * f)), max(4, int(w * f)))
     return torch.nn.functional.interpolate(image[None].float(), size=size, mode="area")[0]
-
-
-def _rescaled(vec: VectorImage, size: tuple[int, int]) -> VectorImage:
-    """``vec`` in the pixel frame of a picture of ``size (H, W)``."""
-    h, w = size
-    if (vec.width, vec.height) == (w, h):
-        return vec
-    f = np.array([w / vec.width, h / vec.height])
-    return VectorImage(w, h, [VectorShape([c * f for c in sh.contours], sh.color, sh.fill_rule) for sh in vec.shapes])
 
 
 def _model_paths(run: Refinement, index: list[int], segments, quality, max_paths, outline: bool = False

@@ -31,6 +31,15 @@ class VectorImage:
     shapes: list[VectorShape] = field(default_factory=list)
     notes: dict = field(default_factory=dict, compare=False, repr=False)  # how it was made (``api.vectorize``)
 
+    def rescaled(self, width: float, height: float) -> VectorImage:
+        """This image on a ``width x height`` canvas: every point scaled by ``width / self.width``
+        across and ``height / self.height`` down (itself when the canvas is already that)."""
+        if (self.width, self.height) == (width, height):
+            return self
+        f = np.array([width / self.width, height / self.height])
+        return VectorImage(width, height, [VectorShape([c * f for c in sh.contours], sh.color, sh.fill_rule)
+                                           for sh in self.shapes], self.notes)
+
     @property
     def num_segments(self) -> int:
         return sum(len(c) // 3 for s in self.shapes for c in s.contours)
