@@ -31,6 +31,7 @@ import io
 import json
 import os
 import re
+import shlex
 import statistics
 import subprocess
 import sys
@@ -256,8 +257,8 @@ def _line(tool: str, r: dict) -> str:
     return "  ".join(parts)
 
 
-def markdown(all_rows: dict, sizes: dict) -> str:
-    lines = [f"# Clean outlines on held-out sets\n\nWritten by `make bench-outlines` "
+def markdown(all_rows: dict, sizes: dict, command: str = "make bench-outlines") -> str:
+    lines = [f"# Clean outlines on held-out sets\n\nWritten by `{command}` "
              f"({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} CPU cores, torch "
              f"{torch.__version__}, {torch.get_num_threads()} threads). All tools on the same images in one run; "
              "the sets and metrics are described in bench/outlines.py.\n"]
@@ -295,7 +296,9 @@ def main():
         sizes[name] = len(rows)
         print(f"{name}: {len(rows)} images", flush=True)
         results[name] = run(name, rows, only)
-    table = markdown(results, sizes)
+    command = "make bench-outlines" if not (args.tools or args.limit or args.sets != "glyphs,icons,emoji") else (
+        "python bench/outlines.py " + " ".join(shlex.quote(a) for a in sys.argv[1:]))
+    table = markdown(results, sizes, command)
     print(table)
     if args.markdown:
         Path(args.markdown).write_text(table)
