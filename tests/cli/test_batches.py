@@ -253,3 +253,33 @@ def test_sigterm_ends_a_worker_batch_cleanly(tmp_path, model_dir):
     assert written and all(not f.name.startswith(".") for f in written)
     for f in written:
         check_svg(f.read_text(), 32 + int(f.stem[1:]) % 3, 32 + int(f.stem[1:]) % 3)
+
+
+@pytest.mark.parametrize("args, pooled", [([], True), (["--parts", "model"], False)])
+def test_no_refine_folders_use_worker_processes_only_for_the_clean_work(tmp_path, model_dir, monkeypatch, args, pooled):
+    """--no-refine on a folder of 64+ pictures: drawing each guess clean is work per picture, so
+    the worker processes of a refined folder share it; the model's own paths (--parts model) are
+    one batched forward pass, which a pool would only slow down."""
+    import im2vec_cli.parallel as parallel
+    import im2vec_cli.runtime as runtime
+    from im2vec_cli.vector import VectorImage
+
+    calls = []
+
+    def fake(chunks, model_name, **kw):  # the pool's contract: a list of results per chunk
+        calls.append(kw)
+        for c in chunks:
+            yield [VectorImage(a.shape[1], a.shape[0]) for a in c]
+
+    monkeypatch.setattr(parallel, "vectorize_chunks", fake)
+    monkeypatch.setattr(runtime, "free_cores", lambda: 2)
+    d = tmp_path / "in"
+    d.mkdir()
+    for i in range(64):
+        glyph_like(32).save(d / f"g{i:03d}.png")
+    res = CliRunner().invoke(cli, ["vectorize", str(d), "-o", str(tmp_path / "out"), "--model", model_dir,
+                                   "--no-refine", *args])
+    assert res.exit_code == 0, res.output
+    assert len(list((tmp_path / "out").glob("*.svg"))) == 64
+    assert [(c["jobs"], c["options"].refine, c["options"].parts) for c in calls] == (
+        [(2, False, "clean")] if pooled else [])

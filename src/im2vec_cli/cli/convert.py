@@ -62,7 +62,7 @@ MAX_SVG_BYTES = 32 * 2**20  # `render` input: an SVG larger than this is refused
 @click.option("--jobs", "-j", type=click.IntRange(1, 64), default=None,
               help="Worker processes for several inputs, each with its own copy of the model (on 2 cores, 2 refine "
                    f"about 1.5x faster than 1). [the CPU cores, at most {MAX_AUTO_JOBS}, from {JOBS_MIN_IMAGES} inputs "
-                   "refined on the CPU; else 1]")
+                   "refined or drawn clean on the CPU; else 1]")
 @click.option("--compile/--no-compile", "compile_", default=False, show_default=True,
               help="Refine through torch.compile'd kernels: about 20 s to compile per image size the first time on a "
                    "machine (cached after); on 2 CPU cores it did not pay on a folder of 1000 glyphs (bench/folder.py).")
@@ -93,7 +93,7 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, toleranc
     free = runtime.free_cores() if len(items) > 1 else 1  # before torch runs anything
     runtime.set_threads(runtime.intra_op_threads(len(items), free=free))
     model = load_model(model_name, device, seed)
-    many = refine and len(items) > 1
+    many = (refine or parts == "clean") and len(items) > 1  # work per picture beyond the batched forward pass
     options = VectorizeOptions(refine=refine, effort=effort, segments=k, quality=quality, max_paths=max_paths,
                                simplify_px=simplify_px, parts=parts, tolerance=tolerance, colors=colors,
                                compile=compile_, max_memory=max_memory, preset=preset, speckle=speckle)
