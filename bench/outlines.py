@@ -296,7 +296,7 @@ def main():
         sizes[name] = len(rows)
         print(f"{name}: {len(rows)} images", flush=True)
         results[name] = run(name, rows, only)
-    command = "make bench-outlines" if not (args.tools or args.limit or args.sets != "glyphs,icons,emoji") else (
+    command = "make bench-outlines" if not (args.tools or args.limit or args.sets != ap.get_default("sets")) else (
         "python bench/outlines.py " + " ".join(shlex.quote(a) for a in sys.argv[1:]))
     table = markdown(results, sizes, command)
     print(table)

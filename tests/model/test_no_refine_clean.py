@@ -12,21 +12,18 @@ from scipy.ndimage import binary_closing
 import im2vec_cli as iv
 from im2vec_cli.files import load_image
 from im2vec_cli.trace import crosses
-from im2vec_cli.vector import rasterize_svg
 from tests.helpers import make_tiny_model, png, run
-from tests.trace.outlines import check_clean_svg, needs_fonts, topology
+from tests.trace.outlines import check_clean_svg, ink, needs_fonts, topology
 
 ASSETS = Path(__file__).resolve().parents[1] / "assets" / "fonts_test"
 UP = 4
 
 
-def hairlines(svg: str, picture: np.ndarray) -> int:
-    """Pixels at 4x where the render shows background inside the picture's ink within a gap of
-    the render's own ink narrower than about 2 input px (what a closing of the render fills):
-    the seams and cracks between parts, not a part drawn a pixel off or missed."""
-    ink = np.kron(picture.mean(-1) < 0.5, np.ones((UP, UP), dtype=bool))
-    out = rasterize_svg(svg, 64 * UP, 64 * UP).mean(-1) < 0.5
-    return int((binary_closing(out, np.ones((2 * UP - 1,) * 2, dtype=bool)) & ~out & ink).sum())
+def hairlines(out: np.ndarray, truth: np.ndarray) -> int:
+    """Pixels at 4x where the render's ink ``out`` shows background inside the picture's ink
+    ``truth`` within a gap of its own ink narrower than about 2 input px (what a closing of the
+    render fills): the seams and cracks between parts, not a part drawn a pixel off or missed."""
+    return int((binary_closing(out, np.ones((2 * UP - 1,) * 2, dtype=bool)) & ~out & truth).sum())
 
 
 @needs_fonts
@@ -40,15 +37,14 @@ def test_no_refine_draws_the_models_guess_without_its_seams():
     same_topology = {"clean": 0, "model": 0}
     ious = []
     for pic, c, m in zip(pictures, clean, paths):
-        img = pic.permute(1, 2, 0).numpy()
-        truth = topology(np.kron(img.mean(-1) < 0.5, np.ones((UP, UP), dtype=bool)))
-        for name, vec in (("clean", c), ("model", m)):
-            svg = vec.to_svg()
-            hair[name] += hairlines(svg, img)
-            same_topology[name] += topology(rasterize_svg(svg, 64 * UP, 64 * UP).mean(-1) < 0.5) == truth
+        truth = np.kron(pic.mean(0).numpy() < 0.5, np.ones((UP, UP), dtype=bool))  # the picture's ink at 4x
+        inks = {"clean": ink(c.to_svg(), UP), "model": ink(m.to_svg(), UP)}
+        for name, out in inks.items():
+            hair[name] += hairlines(out, truth)
+            same_topology[name] += topology(out) == topology(truth)
         check_clean_svg(c.to_svg())
         assert all(s.fill_rule == "nonzero" and not crosses(s.contours) for s in c.shapes)
-        a, b = (rasterize_svg(v.to_svg(), 64 * UP, 64 * UP).mean(-1) < 0.5 for v in (c, m))
+        a, b = inks["clean"], inks["model"]
         ious.append((a & b).sum() / max((a | b).sum(), 1))
     assert hair["clean"] <= 0.2 * hair["model"], hair
     assert same_topology["clean"] >= len(files) // 2 and same_topology["clean"] > same_topology["model"], same_topology
@@ -66,8 +62,7 @@ def test_no_refine_clean_work_is_in_model_pixels_whatever_the_picture_size():
     big = small.repeat_interleave(16, 1).repeat_interleave(16, 2)  # (3, 1024, 1024), nearest
     a, b = iv.vectorize([small, big], model, refine=False)
     assert (b.width, b.height) == (1024, 1024)
-    ink_a = rasterize_svg(a.to_svg(), 256, 256).mean(-1) < 0.5
-    ink_b = rasterize_svg(b.to_svg(), 256, 256).mean(-1) < 0.5
+    ink_a, ink_b = ink(a.to_svg(), UP), ink(b.to_svg(), UP)  # both at 256 px
     assert (ink_a & ink_b).sum() / (ink_a | ink_b).sum() >= 0.9
     assert b.num_segments <= 2 * a.num_segments
 
