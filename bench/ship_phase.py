@@ -14,6 +14,9 @@ models/<set>; metrics.json takes the new figures (the replaced ones kept under
 ``before_phase_<n>``) and a ``phases`` entry; README.md gets a section with the command, the
 config, the code commit and the validation curve. Commit models/<set> afterwards.
 
+A RUN trained on a lent GPU machine (``bench/device_phases.py``) holds no checkpoint.pt: its
+fp16 export came back in RUN/exported (with export.json, its step), and is measured as it is.
+
 ``--feedback N`` in place of RUN measures a phase without training: the shipped model with
 N render-and-compare passes (``ModelConfig.feedback``; the weights are the same, its one
 ``Feedback`` module applied N times), its latent prior refitted with its own settings to the
@@ -65,7 +68,10 @@ def main():
     scratch = run / "ship" if run else ROOT / "runs" / f"ship-{args.name}-feedback{args.feedback}"
     if scratch.exists():
         shutil.rmtree(scratch)
-    if run:
+    if run and (run / "export.json").is_file():  # trained on a lent GPU (bench/device_phases.py): its
+        shutil.copytree(run / "exported", scratch)  # checkpoint stayed there, its fp16 export came back
+        step = json.loads((run / "export.json").read_text())["step"]
+    elif run:
         _, step = export_checkpoint(run, scratch, half=stored_half(shipped))
     else:
         step = with_passes(shipped, scratch, args.feedback, Path(args.data) / args.name)
