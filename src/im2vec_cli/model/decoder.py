@@ -103,5 +103,12 @@ class PathCodes(nn.Module):
     def forward(self, z: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
         """``z (B, D)`` -> code ``(B, P, C)``, depth ``(B, P)``, colour ``(B, P, 3)``, LSTM output ``(B, P, 2H)``."""
         seq = z.unsqueeze(1) + self.step  # (B, P, D)
-        h, _ = self.lstm(seq)  # (B, P, 2H)
+        if seq.is_cuda and torch.is_grad_enabled() and not self.training:
+            # fitting latents (encode --fit, interpolate, refinement) backpropagates through the LSTM
+            # of a model in eval mode, which cuDNN's RNN refuses ("backward can only be called in
+            # training mode"); PyTorch's own kernels compute the same LSTM (no dropout)
+            with torch.backends.cudnn.flags(enabled=False):
+                h, _ = self.lstm(seq)  # (B, P, 2H)
+        else:
+            h, _ = self.lstm(seq)  # (B, P, 2H)
         return self.code(h), self.depth(h).squeeze(-1), torch.sigmoid(self.color(h)), h
