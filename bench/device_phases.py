@@ -45,7 +45,7 @@ PACK = ROOT / ".gpu"
 WHEELS = ("svgwrite==1.4.3",)  # what train imports that the machine's image lacks
 END_SECONDS = 50  # kept after training: the latent prior (if it fits in), the fp16 export and the tars
 VAL_IMAGES = 512  # im2vec_cli.train.VAL_IMAGES: the validation pictures a run uses
-CALIBRATION_LOGS = 4  # logged train events a calibration run waits for (every 10 steps)
+CALIBRATION_LOGS = 3  # logged train events (every 10 steps) a speed is measured over
 
 
 def pack(data: Path, phases: dict[str, Path], thin: dict[str, int]) -> None:
@@ -81,19 +81,17 @@ def _train(name: str, out: Path, seconds: float, extra: list[str], log: Path, de
     return subprocess.Popen(cmd, stdout=log.open("w"), stderr=subprocess.STDOUT, start_new_session=True)
 
 
-def _speed(metrics: Path) -> float | None:
-    """Steps per second between the last two logged train events, once enough are logged."""
+def _logged(metrics: Path) -> list[tuple[int, float]]:
+    """(step, time) of a run's logged train events."""
     if not metrics.is_file():
-        return None
-    ev = [json.loads(line) for line in metrics.read_text().splitlines() if '"train"' in line]
-    if len(ev) < CALIBRATION_LOGS:
-        return None
-    return (ev[-1]["step"] - ev[-2]["step"]) / (ev[-1]["time"] - ev[-2]["time"])
+        return []
+    return [(e["step"], e["time"]) for e in map(json.loads, metrics.read_text().splitlines()) if e["event"] == "train"]
 
 
 def calibrate(names: list[str], work: Path, limit: float, device: str) -> dict[str, float]:
-    """Steps per second of each set's phase, all training at once as they will."""
-    procs, speeds = {}, {}
+    """Steps per second of each set's phase, measured only while all of them train at once, as
+    they will (one still loading its pictures leaves the GPU to the others: 1.5x too fast)."""
+    procs, since, speeds = {}, {}, {}
     for name in names:
         cfg = json.loads((PACK / f"{name}.json").read_text())
         cfg["train"].update(log_every=10, val_every=10**6, ckpt_every=10**6, preview_every=10**6, steps=10**5)
@@ -103,9 +101,13 @@ def calibrate(names: list[str], work: Path, limit: float, device: str) -> dict[s
     t0 = time.monotonic()
     while len(speeds) < len(names) and time.monotonic() - t0 < limit:
         time.sleep(2)
-        for name in names:
-            if name not in speeds and (s := _speed(work / f"cal-{name}" / "metrics.jsonl")) is not None:
-                speeds[name] = s
+        logged = {n: _logged(work / f"cal-{n}" / "metrics.jsonl") for n in names}
+        if not since and all(logged.values()):  # all train from here: each one's last event starts its window
+            since = {n: ev[-1] for n, ev in logged.items()}
+        for n in since:
+            later = [e for e in logged[n] if e[0] > since[n][0]]
+            if n not in speeds and len(later) >= CALIBRATION_LOGS:
+                speeds[n] = (later[-1][0] - since[n][0]) / (later[-1][1] - since[n][1])
     for p in procs.values():
         _stop(p)
     missing = [n for n in names if n not in speeds]
@@ -169,7 +171,7 @@ def run(seconds: float, out: Path, device: str) -> None:
         except Exception as e:  # noqa: BLE001  (one set's failure must not lose the others)
             report.append(f"{name}: no checkpoint to export ({e})")
             continue
-        (run_dir / "export.json").write_text(json.dumps({"step": step}))
+        (run_dir / "export.json").write_text(json.dumps({"step": step, "device": gpu}))
         with tarfile.open(out / f"{name}.tar", "w") as tar:
             for f in ("exported", "export.json", "metrics.jsonl", "train_config.json"):
                 tar.add(run_dir / f, arcname=f)

@@ -120,15 +120,19 @@ def ship(run: Path | None, scratch: Path, shipped: Path, step: int, n_test: int,
     metrics = json.loads((shipped / "metrics.json").read_text())
     phase = metrics.get("earlier_phases", 0) + len(metrics.get("phases", [])) + 1  # earlier: before this script
     events, cfg, started, added = [], {}, None, 0  # no run (``passes``): no steps, no curve
+    entry_device = None
     if run:
         events = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
         cfg = json.loads((run / "train_config.json").read_text())
         started = _started(events)
         added, events = phase_span(metrics.get("phases", []), events, step)
+        if (run / "export.json").is_file():  # bench/device_phases.py: trained on a lent GPU machine
+            entry_device = json.loads((run / "export.json").read_text()).get("device", "GPU")
     entry = {"phase": phase, "date": time.strftime("%Y-%m-%d", time.gmtime()), "commit": commit,
              "steps": step, "steps_added": added, "of_steps": cfg.get("steps", step),
              "minutes": round(_minutes(events), 1), "run_started": started, "test_images": n_test,
-             "before": before, "after": after, **({"feedback": passes} if passes else {})}
+             "before": before, "after": after, **({"feedback": passes} if passes else {}),
+             **({"device": entry_device} if entry_device else {})}
     # the card's own figure when it was measured on the whole test split (emoji, icons), else the seeded subset's
     key = "test_recon_l2" if metrics.get("test_images") == n_test else f"test_split_{n_test}_recon_l2"
     replaced = {k: metrics[k] for k in (key, key + "_stderr", "assets_subset_recon_l2",
@@ -168,12 +172,15 @@ def card_section(entry: dict, cfg: dict, events: list[dict]) -> str:
                         f"{entry['feedback']}` in config.json), the latent prior refitted with its own settings "
                         f"to the latents they give (`python bench/ship_phase.py --feedback {entry['feedback']}`).", ""]
         return "\n".join(lines + _figures(b, a, entry["test_images"]))
-    lines = head + [("`make train-<set> RESUME=1` (`im2vec train DATA --out RUN --resume --minutes ...`, the run of "
+    lines = head + [(f"`python bench/device_phases.py run` on a lent {entry['device']} (`im2vec train DATA --init "
+                  "<the shipped model> --config ... --steps <as calibrated> --minutes ... --device cuda`, beside the "
+                  "other sets' phases; `python bench/device_phases.py unpack` here" if "device" in entry else
+                  "`make train-<set> RESUME=1` (`im2vec train DATA --out RUN --resume --minutes ...`, the run of "
                   "the last phase continued" if _resumed(entry) else
                   "`make train-<set>` (`im2vec train DATA --init <the shipped model> --config "
                   "models/phases/<set>.json --minutes ...`")
              + f", then `python bench/ship_phase.py`): {_steps(entry)} of {entry['of_steps']} steps in "
-             f"{entry['minutes']} min on this machine, with", "",
+             f"{entry['minutes']} min" + ("" if "device" in entry else " on this machine") + ", with", "",
              "```json", json.dumps({k: v for k, v in cfg.items() if k not in ("class_name", "format_version")}),
              "```", "", *_figures(b, a, entry["test_images"]), "", "Validation (the run's `metrics.jsonl`):", "",
              "| step | min | val pyramid L2 | val MSE |", "|---|---|---|---|"]
