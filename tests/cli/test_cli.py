@@ -223,3 +223,14 @@ def test_vectorize_verbose_says_what_each_picture_was_read_as(tmp_path, model_di
     assert res.exit_code == 0, res.output
     assert res.stderr.strip().splitlines() == [f"{tmp_path / 's.png'}: pixel (block 6); 5 paths, "
                                                f"{res.stderr.split('paths, ')[1].split(' ')[0]} segments"]
+
+
+@pytest.mark.parametrize("parts, kind", [("clean", "the model's guess, mended"), ("model", "the model's paths")])
+def test_vectorize_verbose_names_the_guess_without_refinement(tmp_path, model_dir, parts, kind):
+    """-v with --no-refine: the line says whether the guess was mended (--parts clean) or is the model's own paths."""
+    Image.fromarray(np.full((16, 16, 3), 255, np.uint8)).save(tmp_path / "w.png")
+    res = CliRunner().invoke(cli, ["vectorize", str(tmp_path / "w.png"), "-o", str(tmp_path / "w.svg"), "-v",
+                                   "--no-refine", "--parts", parts, "--model", model_dir])
+    assert res.exit_code == 0, res.output
+    (line,) = res.stderr.strip().splitlines()
+    assert line.startswith(f"{tmp_path / 'w.png'}: {kind}; "), line
