@@ -224,12 +224,16 @@ def training_with(training: dict, entry: dict) -> dict:
     if "feedback" in entry:  # no run: steps and wall stay
         how = f"phase {entry['phase']}: {entry['feedback']} feedback passes at inference, no training"
         return {**training, "phases": "; ".join(x for x in (training.get("phases"), how) if x)}
+    where = f" on a lent {entry['device']}" if "device" in entry else ""  # bench/device_phases.py
     how = (f"the run of phase {entry['phase'] - 1} resumed to {entry['steps']:,} of its {entry['of_steps']:,} steps"
-           if _resumed(entry) else f"make train-<set> from phase {entry['phase'] - 1}, {entry['steps']:,} steps")
+           if _resumed(entry) else f"bench/device_phases.py from phase {entry['phase'] - 1}{where}, "
+           f"{entry['steps']:,} steps" if where else f"make train-<set> from phase {entry['phase'] - 1}, "
+           f"{entry['steps']:,} steps")
+    wall = f"{entry['minutes']:.0f} min" + (" (GPU)" if where else "")
     return {**training, "steps": training.get("steps", 0) + entry["steps_added"],
-            "wall": f"{training['wall']} + {entry['minutes']:.0f} min" if training.get("wall") else
-            f"{entry['minutes']:.0f} min", "phases": "; ".join(x for x in (training.get("phases"),
-                                                                           f"phase {entry['phase']}: {how}") if x)}
+            "wall": f"{training['wall']} + {wall}" if training.get("wall") else wall,
+            "hardware": training.get("hardware", "") + (f"; phase {entry['phase']}{where}" if where else ""),
+            "phases": "; ".join(x for x in (training.get("phases"), f"phase {entry['phase']}: {how}") if x)}
 
 
 def _resumed(entry: dict) -> bool:
