@@ -15,8 +15,9 @@ the one GPU, each as ``im2vec train --init``. A short calibration run per set fi
 it has logged its speed) tells how many steps fit before ``S`` less the time kept for the end,
 so that each phase's cosine schedule ends inside it (``--minutes`` stops a phase that runs
 slow). Each run then fits its latent prior, unless the end comes first (``unpack`` fits it
-here then). ``$OUT/<set>.tar`` holds the run's exported model (fp16, as shipped),
-metrics.jsonl, train_config.json and its log; ``$OUT/device.txt`` the timings.
+here then; a prior fitted to a ``--thin`` set is better refitted here to the whole one, ``im2vec
+fit-prior``). ``$OUT/<set>.tar`` holds the run's exported model (fp16, as shipped),
+metrics.jsonl and train_config.json, ``$OUT/<set>.log`` its log, ``$OUT/device.txt`` the timings.
 
 ``unpack`` (here): each tar into ``runs/<set>-device/``, the latent prior fitted where it came
 back without one; then ``python bench/ship_phase.py runs/<set>-device --set <set> --data DATA
@@ -45,6 +46,7 @@ PACK = ROOT / ".gpu"
 WHEELS = ("svgwrite==1.4.3",)  # what train imports that the machine's image lacks
 END_SECONDS = 50  # kept after training: the latent prior (if it fits in), the fp16 export and the tars
 VAL_IMAGES = 512  # im2vec_cli.train.VAL_IMAGES: the validation pictures a run uses
+STARTUP_SECONDS = 30  # a run's model, pictures and first steps before its speed holds (MNIST's 25,000 PNGs: ~20 s)
 CALIBRATION_LOGS = 3  # logged train events (every 10 steps) a speed is measured over
 
 
@@ -151,8 +153,7 @@ def run(seconds: float, out: Path, device: str) -> None:
     train_s = seconds - (time.monotonic() - t0) - END_SECONDS
     procs = {}
     for name in names:
-        startup = 30 if name == "mnist" else 15  # model, data and the first steps before the speed holds
-        steps = int(0.93 * speeds[name] * (train_s - startup))
+        steps = int(0.93 * speeds[name] * (train_s - STARTUP_SECONDS))
         procs[name] = _train(name, work / name, train_s, ["--config", str(PACK / f"{name}.json"), "--steps",
                                                           str(steps)], out / f"{name}.log", device)
         report.append(f"{name}: {steps} steps planned in {train_s:.0f} s")
