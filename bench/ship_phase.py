@@ -230,9 +230,9 @@ def training_with(training: dict, entry: dict) -> dict:
            f"{entry['steps']:,} steps" if where else f"make train-<set> from phase {entry['phase'] - 1}, "
            f"{entry['steps']:,} steps")
     wall = f"{entry['minutes']:.0f} min" + (" (GPU)" if where else "")
+    hardware = {"hardware": f"{training.get('hardware', '?')}; phase {entry['phase']}{where}"} if where else {}
     return {**training, "steps": training.get("steps", 0) + entry["steps_added"],
-            "wall": f"{training['wall']} + {wall}" if training.get("wall") else wall,
-            "hardware": training.get("hardware", "") + (f"; phase {entry['phase']}{where}" if where else ""),
+            "wall": f"{training['wall']} + {wall}" if training.get("wall") else wall, **hardware,
             "phases": "; ".join(x for x in (training.get("phases"), f"phase {entry['phase']}: {how}") if x)}
 
 

@@ -72,3 +72,12 @@ def test_shipping_names_the_commit_it_is_given_and_replaces_only_the_model_files
     card = (shipped / "README.md").read_text()
     assert "## Phase 1 (" in card and "code at fdc60e9)" in card
     assert (shipped / "config.json").read_text() == '{"feedback": 2}' and (shipped / "segments.json").is_file()
+
+
+def test_a_phase_from_a_lent_gpu_names_it_in_the_cards_training_summary():
+    before = {"steps": 100, "wall": "59 min", "hardware": "2 CPU cores, no GPU", "phases": "one run"}
+    after = training_with(before, {"phase": 6, "steps": 7270, "steps_added": 7270, "of_steps": 7270, "minutes": 6.6,
+                                   "device": "NVIDIA H200"})
+    assert after == {"steps": 7370, "wall": "59 min + 7 min (GPU)",
+                     "hardware": "2 CPU cores, no GPU; phase 6 on a lent NVIDIA H200",
+                     "phases": "one run; phase 6: bench/device_phases.py from phase 5 on a lent NVIDIA H200, 7,270 steps"}

@@ -83,9 +83,7 @@ def vectorize(images, model=DEFAULT_MODEL, options: VectorizeOptions | None = No
         out = _refined(model, pictures, o, on_event)
     else:
         kw = {"segments": o.segments, "quality": o.quality, "max_paths": o.max_paths, "clean": o.parts == "clean"}
-        notes = {"kind": "the model's guess, mended" if kw["clean"] else "the model's paths"}
-        out = [dataclasses.replace(simplify(v, o.simplify_px or 0.0), notes=dict(notes))
-               for v in infer.vectorize(model, pictures, **kw)]
+        out = [simplify(v, o.simplify_px or 0.0) for v in infer.vectorize(model, pictures, **kw)]
     return out[0] if one else out
 
 

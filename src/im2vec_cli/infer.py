@@ -6,6 +6,8 @@ the *input's* pixel frame with the image's ``Placement``, so an SVG overlays its
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import torch
 
@@ -117,7 +119,8 @@ def vectorize(model: Im2Vec, images: list[torch.Tensor], *, segments: int | str 
         for j, (i, p) in enumerate(zip(todo, places)):
             vec = resolve_overlaps(to_vector(dec, j, p, max_paths=max_paths), images[i])
             out[i] = clean_guess(vec, p, model.config.image_size) if clean else vec
-    return out  # type: ignore[return-value]
+    kind = "the model's guess, mended" if clean else "the model's paths"  # what `vectorize -v` says
+    return [dataclasses.replace(v, notes={"kind": kind}) for v in out]  # type: ignore[arg-type]
 
 
 def clean_guess(vec: VectorImage, place: Placement, size: int) -> VectorImage:
