@@ -45,7 +45,6 @@ ROOT = Path(__file__).resolve().parents[1]
 PACK = ROOT / ".gpu"
 WHEELS = ("svgwrite==1.4.3",)  # what train imports that the machine's image lacks
 END_SECONDS = 50  # kept after training: the latent prior (if it fits in), the fp16 export and the tars
-VAL_IMAGES = 512  # im2vec_cli.train.VAL_IMAGES: the validation pictures a run uses
 STARTUP_SECONDS = 30  # a run's model, pictures and first steps before its speed holds (MNIST's 25,000 PNGs: ~20 s)
 CALIBRATION_LOGS = 3  # logged train events (every 10 steps) a speed is measured over
 
@@ -53,6 +52,9 @@ CALIBRATION_LOGS = 3  # logged train events (every 10 steps) a speed is measured
 def pack(data: Path, phases: dict[str, Path], thin: dict[str, int]) -> None:
     """``thin``: every Nth training picture of a set (and validation pictures as many as train
     uses, ``VAL_IMAGES``), where a set's pictures would not fit in what travels."""
+    sys.path.insert(0, str(ROOT / "src"))
+    from im2vec_cli.train import VAL_IMAGES
+
     shutil.rmtree(PACK, ignore_errors=True)
     for name, config in phases.items():
         for split in ("train", "val"):

@@ -68,9 +68,10 @@ def main():
     scratch = run / "ship" if run else ROOT / "runs" / f"ship-{args.name}-feedback{args.feedback}"
     if scratch.exists():
         shutil.rmtree(scratch)
-    if run and (run / "export.json").is_file():  # trained on a lent GPU (bench/device_phases.py): its
-        shutil.copytree(run / "exported", scratch)  # checkpoint stayed there, its fp16 export came back
-        step = json.loads((run / "export.json").read_text())["step"]
+    exported = json.loads((run / "export.json").read_text()) if run and (run / "export.json").is_file() else None
+    if exported:  # trained on a lent GPU (bench/device_phases.py): its checkpoint stayed there, its fp16 export
+        shutil.copytree(run / "exported", scratch)  # came back
+        step = exported["step"]
     elif run:
         _, step = export_checkpoint(run, scratch, half=stored_half(shipped))
     else:
@@ -84,7 +85,8 @@ def main():
     better = after["test_recon_l2"] < (1 - args.margin) * before["test_recon_l2"]
     print(("ships" if better else "does not beat the shipped model") + f" (step {step}, {len(test)} test images)")
     if better and not args.dry_run:
-        ship(run, scratch, shipped, step, len(test), before, after, args.feedback, args.commit or _commit())
+        ship(run, scratch, shipped, step, len(test), before, after, args.feedback, args.commit or _commit(),
+             exported and exported.get("device", "GPU"))
         print(f"shipped into {shipped}: commit it")
 
 
@@ -116,23 +118,21 @@ def with_passes(shipped: Path, scratch: Path, passes: int, data: Path) -> int:
 
 
 def ship(run: Path | None, scratch: Path, shipped: Path, step: int, n_test: int, before: dict, after: dict,
-         passes: int | None = None, commit: str = "unknown") -> None:
+         passes: int | None = None, commit: str = "unknown", device: str | None = None) -> None:
+    """``device``: the lent GPU the run trained on (bench/device_phases.py), if it did."""
     metrics = json.loads((shipped / "metrics.json").read_text())
     phase = metrics.get("earlier_phases", 0) + len(metrics.get("phases", [])) + 1  # earlier: before this script
     events, cfg, started, added = [], {}, None, 0  # no run (``passes``): no steps, no curve
-    entry_device = None
     if run:
         events = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
         cfg = json.loads((run / "train_config.json").read_text())
         started = _started(events)
         added, events = phase_span(metrics.get("phases", []), events, step)
-        if (run / "export.json").is_file():  # bench/device_phases.py: trained on a lent GPU machine
-            entry_device = json.loads((run / "export.json").read_text()).get("device", "GPU")
     entry = {"phase": phase, "date": time.strftime("%Y-%m-%d", time.gmtime()), "commit": commit,
              "steps": step, "steps_added": added, "of_steps": cfg.get("steps", step),
              "minutes": round(_minutes(events), 1), "run_started": started, "test_images": n_test,
              "before": before, "after": after, **({"feedback": passes} if passes else {}),
-             **({"device": entry_device} if entry_device else {})}
+             **({"device": device} if device else {})}
     # the card's own figure when it was measured on the whole test split (emoji, icons), else the seeded subset's
     key = "test_recon_l2" if metrics.get("test_images") == n_test else f"test_split_{n_test}_recon_l2"
     replaced = {k: metrics[k] for k in (key, key + "_stderr", "assets_subset_recon_l2",

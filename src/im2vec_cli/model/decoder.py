@@ -10,6 +10,7 @@ Convolutions use circular padding 1 with kernel 3, so the length stays 3k (the a
 
 from __future__ import annotations
 
+import contextlib
 import math
 
 import torch
@@ -103,12 +104,10 @@ class PathCodes(nn.Module):
     def forward(self, z: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
         """``z (B, D)`` -> code ``(B, P, C)``, depth ``(B, P)``, colour ``(B, P, 3)``, LSTM output ``(B, P, 2H)``."""
         seq = z.unsqueeze(1) + self.step  # (B, P, D)
-        if seq.is_cuda and torch.is_grad_enabled() and not self.training:
-            # fitting latents (encode --fit, interpolate, refinement) backpropagates through the LSTM
-            # of a model in eval mode, which cuDNN's RNN refuses ("backward can only be called in
-            # training mode"); PyTorch's own kernels compute the same LSTM (no dropout)
-            with torch.backends.cudnn.flags(enabled=False):
-                h, _ = self.lstm(seq)  # (B, P, 2H)
-        else:
+        # fitting latents (encode --fit, interpolate, refinement) backpropagates through the LSTM of
+        # a model in eval mode, which cuDNN's RNN refuses ("backward can only be called in training
+        # mode"); PyTorch's own kernels compute the same LSTM (no dropout)
+        no_cudnn = seq.is_cuda and torch.is_grad_enabled() and not self.training
+        with torch.backends.cudnn.flags(enabled=False) if no_cudnn else contextlib.nullcontext():
             h, _ = self.lstm(seq)  # (B, P, 2H)
         return self.code(h), self.depth(h).squeeze(-1), torch.sigmoid(self.color(h)), h
