@@ -5,7 +5,8 @@ included; it runs one command (10 minutes at most) over a copy of the checkout (
 and brings back at most 8 files of 16 MiB from ``$OUT``. This script fits a phase of several
 models into one such command, in three steps:
 
-``pack`` (here): ``.gpu/`` (ignored by git; the command names it in ``carry``) gets, per set,
+``pack`` (here): ``.gpu/`` (ignored by git; the command names it in ``carry``) gets, per set
+(a run ``SET.TAG`` is another phase of SET, e.g. a control beside it, sharing its pictures),
 the PNGs of DATA/<set>/{train,val}, the shipped weights the phase starts from
 (``models/<set>``'s config.json and model.safetensors) and the phase's config, plus the
 wheels the machine lacks (svgwrite). It prints the bytes that travel.
@@ -56,7 +57,12 @@ def pack(data: Path, phases: dict[str, Path], thin: dict[str, int]) -> None:
     from im2vec_cli.train import VAL_IMAGES
 
     shutil.rmtree(PACK, ignore_errors=True)
+    PACK.mkdir()
     for name, config in phases.items():
+        shutil.copy2(config, PACK / f"{name}.json")
+        name = _set(name)
+        if (PACK / "init" / name).is_dir():  # a second run of the set (a control) shares its pictures
+            continue
         for split in ("train", "val"):
             src = data / name / split
             pngs = sorted(src.rglob("*.png"))  # MNIST's are in a folder per class
@@ -69,7 +75,6 @@ def pack(data: Path, phases: dict[str, Path], thin: dict[str, int]) -> None:
         init.mkdir(parents=True)
         for f in ("config.json", "model.safetensors"):
             shutil.copy2(ROOT / "models" / name / f, init / f)
-        shutil.copy2(config, PACK / f"{name}.json")
     (PACK / "whl").mkdir()
     subprocess.run([sys.executable, "-m", "pip", "download", "-q", "--no-deps", "--only-binary=:all:",
                     "--python-version", "3.12", "--implementation", "cp", "--platform", "manylinux2014_x86_64",
@@ -78,9 +83,14 @@ def pack(data: Path, phases: dict[str, Path], thin: dict[str, int]) -> None:
     print(f"{PACK}: {size / 2**20:.1f} MiB for {', '.join(phases)}")
 
 
+def _set(name: str) -> str:
+    """A run's set: ``icons`` for ``icons`` and for ``icons.control`` (two runs of one set)."""
+    return name.split(".")[0]
+
+
 def _train(name: str, out: Path, seconds: float, extra: list[str], log: Path, device: str) -> subprocess.Popen:
-    cmd = [sys.executable, "-m", "im2vec_cli", "train", str(PACK / "data" / name), "--out", str(out),
-           "--init", str(PACK / "init" / name), "--device", device, "--overwrite", "--workers", "4",
+    cmd = [sys.executable, "-m", "im2vec_cli", "train", str(PACK / "data" / _set(name)), "--out", str(out),
+           "--init", str(PACK / "init" / _set(name)), "--device", device, "--overwrite", "--workers", "4",
            "--minutes", f"{seconds / 60:.3f}", *extra]
     return subprocess.Popen(cmd, stdout=log.open("w"), stderr=subprocess.STDOUT, start_new_session=True)
 
@@ -197,7 +207,7 @@ def unpack(src: Path, data: Path) -> None:
         model = run_dir / "exported"
         if not (model / "latent_prior.json").is_file():  # the end came before the run fitted it
             cfg = json.loads((run_dir / "train_config.json").read_text())
-            fit_prior(data / name, str(model), str(model), components=cfg["prior_components"], seed=cfg["seed"],
+            fit_prior(data / _set(name), str(model), str(model), components=cfg["prior_components"], seed=cfg["seed"],
                       shrink=cfg["prior_shrink"], overwrite=True)
         print(f"{run_dir}: step {json.loads((run_dir / 'export.json').read_text())['step']}")
 
@@ -207,7 +217,8 @@ def main() -> None:
     sub = ap.add_subparsers(dest="cmd", required=True)
     p = sub.add_parser("pack")
     p.add_argument("--data", type=Path, required=True)
-    p.add_argument("--phase", action="append", required=True, metavar="SET=CONFIG")
+    p.add_argument("--phase", action="append", required=True, metavar="SET[.TAG]=CONFIG",
+                   help="A phase of SET; SET.TAG names a second run of it (a control).")
     p.add_argument("--thin", action="append", default=[], metavar="SET=N", help="Every Nth training picture of SET.")
     r = sub.add_parser("run")
     r.add_argument("--seconds", type=float, required=True, help="The whole command's time, end included.")

@@ -77,13 +77,17 @@ def test_supersampled_loss_trains(tmp_path, shapes):
         train(None, tmp_path / "bad", MODEL, fast_cfg(pyramid="nearest"), images=shapes)
 
 
-def test_resume_is_exact(tmp_path, shapes):
+@pytest.mark.parametrize("augment", ["", "flip,shift"])
+def test_resume_is_exact(tmp_path, shapes, augment):
+    """A run stopped and resumed ends with the weights of one that ran straight through, the
+    augmented batches (``augment``: drawn from the checkpointed generator) included."""
     straight = tmp_path / "a"
-    train(None, straight, MODEL, fast_cfg(steps=6, ckpt_every=3), images=shapes)
+    train(None, straight, MODEL, fast_cfg(steps=6, ckpt_every=3, augment=augment), images=shapes)
     split = tmp_path / "b"
     with pytest.raises(KeyboardInterrupt):
-        train(None, split, MODEL, fast_cfg(steps=6, ckpt_every=100), images=shapes, on_event=_stop_after(3))
-    train(None, split, MODEL, fast_cfg(steps=6, ckpt_every=3), images=shapes, resume=True)
+        train(None, split, MODEL, fast_cfg(steps=6, ckpt_every=100, augment=augment), images=shapes,
+              on_event=_stop_after(3))
+    train(None, split, MODEL, fast_cfg(steps=6, ckpt_every=3, augment=augment), images=shapes, resume=True)
     a = torch.load(straight / "checkpoint.pt", weights_only=False)
     b = torch.load(split / "checkpoint.pt", weights_only=False)
     assert a["step"] == b["step"] == 6

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any, get_type_hints
 
 from .errors import ConfigError, Im2VecError
-from .options import ARCHS, FITS, GROUPINGS
+from .options import ARCHS, FITS, GROUPINGS, parse_augment
 
 FORMAT_VERSION = 1
 # ModelConfig.grouping: how the P paths make shapes. "evenodd": one shape under the even-odd rule (every
@@ -109,6 +109,7 @@ class ModelConfig(JsonConfig):
     samples: int = 4  # lines per cubic when rasterising
     levels: int = 3  # Gaussian pyramid levels of the loss (eq. 1)
     feedback: int = 0  # render-and-compare passes correcting the encoder's latent (model.encoder.Feedback), 0 to 3
+    feedback_paths: bool = False  # the feedback pass also sees each path's own coverage (P more input channels)
     segment_predictor: int = 0  # hidden width of the segment-count MLP (sec. 3.3); 0: none (`im2vec train-aux` adds it)
 
     def __post_init__(self):
@@ -121,6 +122,8 @@ class ModelConfig(JsonConfig):
                 raise ConfigError(f"ModelConfig.{key} must be >= {low}, got {getattr(self, key)}")
         if self.feedback > 3:
             raise ConfigError(f"ModelConfig.feedback must be <= 3 (each pass renders the batch once), got {self.feedback}")
+        if self.feedback_paths and not self.feedback:
+            raise ConfigError("ModelConfig.feedback_paths needs feedback >= 1 (it adds inputs to the feedback pass)")
         if self.min_segments > self.max_segments:
             raise ConfigError(f"ModelConfig.min_segments ({self.min_segments}) is above max_segments ({self.max_segments})")
         for key, allowed in (("arch", ARCHS), ("fit", FITS),
@@ -150,6 +153,7 @@ class TrainConfig(JsonConfig):
     distill: float = 0.0  # > 0: weight of the encoder's squared distance to the fitted latents (distill.Teacher)
     distill_images: int = 4096  # training images whose latents the teacher fits (when distill > 0)
     outline: float = 0.0  # > 0: weight of the mean squared distance (px^2) of the traced outlines to the paths (outline_aux)
+    augment: str = ""  # "flip", "shift" or "flip,shift": mirrored / shifted training pictures (data.augment)
     train_only: str = ""  # TRAIN_ONLY: "encoder" freezes the rest (the decoder the teacher's latents were fitted to)
     prior_components: int = DEFAULT_COMPONENTS  # Gaussians of the latent prior fitted at the end (fonts: 62)
     prior_shrink: float = DEFAULT_SHRINK  # its covariance shrinkage (model.prior.fit_prior; emoji: 0.05)
@@ -180,5 +184,10 @@ class TrainConfig(JsonConfig):
             raise ConfigError(f"TrainConfig.pyramid must be one of {PYRAMID_MODES}, got {self.pyramid!r}")
         if not 0.0 <= self.ema < 1.0:
             raise ConfigError(f"TrainConfig.ema must be in [0, 1), got {self.ema}")
+        try:
+            if parse_augment(self.augment) and self.outline:
+                raise ValueError("augment moves the pictures away from the outlines the outline loss traced")
+        except ValueError as e:
+            raise ConfigError(f"TrainConfig.augment: {e}") from None
         if self.train_only not in TRAIN_ONLY:
             raise ConfigError(f"TrainConfig.train_only must be one of {TRAIN_ONLY}, got {self.train_only!r}")

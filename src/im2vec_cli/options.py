@@ -18,7 +18,17 @@ PRIORS = ("auto", "fitted", "normal")  # `sample --prior`: auto is the fitted pr
 GROUPINGS = ("evenodd", "nonzero", "layers")  # ModelConfig.grouping: how paths make shapes
 ARCHS = ("im2vec", "imagevae")  # ModelConfig.arch: the vector model, or the paper's raster baseline
 FITS = ("resize", "pad")  # ModelConfig.fit: how an image smaller than the model square meets it
-GROWABLE = ("paths", "grouping", "palette", "feedback")  # ModelConfig keys a fine-tune (`train --init`) may change
+AUGMENTS = ("flip", "shift")  # TrainConfig.augment: the kinds it may name, comma-separated (data.augment)
+GROWABLE = ("paths", "grouping", "palette", "feedback", "feedback_paths")  # ModelConfig keys a fine-tune (`train --init`) may change
+
+
+def parse_augment(spec: str) -> tuple[str, ...]:
+    """``TrainConfig.augment`` ``"flip,shift"`` -> ``("flip", "shift")``; an unknown kind raises ``ValueError``."""
+    kinds = tuple(k.strip() for k in spec.split(",") if k.strip())
+    bad = [k for k in kinds if k not in AUGMENTS]
+    if bad:
+        raise ValueError(f"unknown augment {', '.join(bad)} (known: {', '.join(AUGMENTS)})")
+    return kinds
 
 
 MEMORY_DEFAULT = 2 * 2**30  # `vectorize --max-memory`: the budget of one vectorize process...

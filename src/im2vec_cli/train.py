@@ -30,6 +30,7 @@ from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
 
 from .checkpoint import load_checkpoint, prepare_run_dir, save_checkpoint
 from .config import ModelConfig, TrainConfig
+from .data.augment import augment_batch
 from .data.folder import find_split_dirs, load_folder, split_indices
 from .distill import Teacher, distill_loss, freeze, load_or_fit_teacher
 from .errors import DataError, Im2VecError, TrainingError
@@ -172,10 +173,9 @@ def train_step(state: TrainState, ddp_model: torch.nn.Module, train_x: torch.Ten
     """One optimiser step on a random batch at a random k (sec. 3.5). A non-finite loss or
     gradient skips the update, so the weights never see a NaN or inf.
 
-    With a ``teacher`` the batch is drawn from its images and ``cfg.distill`` times
-    ``distill_loss`` joins the loss; with ``outlines``, ``cfg.outline`` times ``outline_loss``.
-    Returns the step's figures: loss, pyramid L2, KL, (distill, outline,) k, lr, tau, gradient
-    norm, finite."""
+    With a ``teacher`` the batch is drawn from its images and ``cfg.distill`` times ``distill_loss``
+    joins the loss; with ``outlines``, ``cfg.outline`` times ``outline_loss``; ``cfg.augment`` mirrors
+    and shifts the batch. Returns loss, pyramid L2, KL, (distill, outline,) k, lr, tau, gradient norm, finite."""
     sch = schedule(state.step, cfg)
     for g in state.opt.param_groups:
         g["lr"] = sch["lr"]
@@ -185,7 +185,7 @@ def train_step(state: TrainState, ddp_model: torch.nn.Module, train_x: torch.Ten
     else:
         idx, z_fit = state.teacher.draw(cfg.batch, state.gen)
     k = int(torch.randint(model_cfg.min_segments, model_cfg.max_segments + 1, (1,), generator=state.gen))
-    x = train_x[idx].to(device).float() / 255  # (B, 3, S, S)
+    x = augment_batch(train_x[idx].to(device).float() / 255, cfg.augment, state.gen)  # (B, 3, S, S)
     rec, kl, dec, mu = reconstruction_loss(ddp_model, x, k, sch["tau"], sample=True, supersample=cfg.supersample,
                                          pyramid=cfg.pyramid)
     loss = rec + sch["beta"] * kl

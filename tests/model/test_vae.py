@@ -144,6 +144,32 @@ def test_more_feedback_passes_apply_the_one_module_again():
         assert not torch.allclose(three.encode(x)[0], one.encode(x)[0], atol=1e-4)
 
 
+def test_per_path_inputs_grown_into_a_feedback_pass_change_nothing_until_trained():
+    """``feedback_paths`` added to a feedback model by a fine-tune: its first layer gets zero
+    weights for the P coverage channels, so the grown model encodes exactly as before; weights
+    there make the pass read which path drew what."""
+    from im2vec_cli.model.pretrained import grow_state
+
+    torch.manual_seed(0)
+    old = ModelConfig(feedback=2, palette="#000000", **TINY)
+    new = ModelConfig(feedback=2, feedback_paths=True, palette="#000000", **TINY)
+    base = Im2Vec(old)
+    torch.nn.init.normal_(base.feedback.step.weight, std=0.05)
+    torch.nn.init.normal_(base.decoder.net[-1].weight, std=0.05)
+    model = Im2Vec(new)
+    model.load_state_dict(grow_state(base.state_dict(), old, new, seed=3))  # strict
+    assert model.feedback.net[0].weight.shape[1] == 3 * 3 + new.paths
+    x = torch.rand(2, 3, 32, 32)
+    with torch.no_grad():
+        assert torch.allclose(model.encode(x)[0], base.encode(x)[0], atol=1e-6)
+        torch.nn.init.normal_(model.feedback.net[0].weight[:, 9:], std=0.1)
+        assert not torch.allclose(model.encode(x)[0], base.encode(x)[0], atol=1e-4)
+    back = grow_state(model.state_dict(), new, old)  # dropped again: the picture channels stay
+    assert torch.equal(back["feedback.net.0.weight"], model.feedback.net[0].weight[:, :9])
+    with pytest.raises(Im2VecError, match="feedback_paths"):
+        ModelConfig(feedback_paths=True, **TINY)
+
+
 def test_bad_image_shape_names_the_argument():
     m = Im2Vec(ModelConfig(**TINY))
     with pytest.raises(ValueError, match="images"):

@@ -32,23 +32,28 @@ class Encoder(nn.Module):
 
 class Feedback(nn.Module):
     """One render-and-compare pass: the picture, the render of the current latent and their
-    difference ``(B, 3C, S, S)`` through a conv stack like the encoder's, then a linear step
-    from those features and the latent to a correction added to the latent ``(B, D)``.
+    difference ``(B, 3C, S, S)``, and with ``paths = P`` each path's own coverage ``(B, P, S, S)``
+    (``ModelConfig.feedback_paths``: which path drew what), through a conv stack like the
+    encoder's, then a linear step from those features and the latent to a correction added to
+    the latent ``(B, D)``.
 
     The step's layer starts at zero, so a model given a feedback pass (``ModelConfig.feedback``,
     grown by ``train --init``) encodes what it encoded before and learns the correction from there.
     """
 
-    def __init__(self, image_size: int, channels: int, latent: int, width: int):
+    def __init__(self, image_size: int, channels: int, latent: int, width: int, paths: int = 0):
         super().__init__()
-        self.net, features = conv_stack(image_size, 3 * channels, width)
+        self.net, features = conv_stack(image_size, 3 * channels + paths, width)
         self.step = nn.Linear(features + latent, latent)
         nn.init.zeros_(self.step.weight)
         nn.init.zeros_(self.step.bias)
 
-    def forward(self, x: torch.Tensor, seen: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
-        """``x, seen (B, C, S, S)`` in [0, 1], ``z (B, D)`` -> the corrected latent ``(B, D)``."""
-        h = self.net(torch.cat([2 * x - 1, 2 * seen - 1, x - seen], 1)).flatten(1)  # (B, C' * 16)
+    def forward(self, x: torch.Tensor, seen: torch.Tensor, z: torch.Tensor,
+                parts: torch.Tensor | None = None) -> torch.Tensor:
+        """``x, seen (B, C, S, S)`` in [0, 1], ``z (B, D)``, ``parts (B, P, S, S)`` in [0, 1] when
+        built with ``paths`` -> the corrected latent ``(B, D)``."""
+        inputs = [2 * x - 1, 2 * seen - 1, x - seen] + ([2 * parts - 1] if parts is not None else [])
+        h = self.net(torch.cat(inputs, 1)).flatten(1)  # (B, C' * 16)
         return z + self.step(torch.cat([h, z], -1))
 
 

@@ -185,7 +185,8 @@ def grow_state(state: dict[str, torch.Tensor], old: ModelConfig, new: ModelConfi
     ``palette_logits`` go, and the colour head ``codes.color``, which a palette model carries
     untrained, learns. A feedback pass (``feedback``) added starts from fresh weights whose
     step is zero (``Feedback``), so the grown model encodes what ``old`` did; one removed is
-    dropped. Every other tensor has the same shape in both configs and is copied.
+    dropped. The per-path inputs of ``feedback_paths`` added to a feedback pass (or new paths'
+    ones) start with zero weights in its first layer, so they too change nothing at first. Every other tensor has the same shape in both configs and is copied.
     """
     import dataclasses
 
@@ -200,8 +201,14 @@ def grow_state(state: dict[str, torch.Tensor], old: ModelConfig, new: ModelConfi
     if new.feedback and not old.feedback:
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(seed)
-            fresh = Feedback(new.image_size, new.channels, new.latent, new.enc_width)
+            fresh = Feedback(new.image_size, new.channels, new.latent, new.enc_width,
+                             new.paths if new.feedback_paths else 0)
         out.update({f"feedback.{k}": v for k, v in fresh.state_dict().items()})
+    elif new.feedback:  # the feedback's inputs: 3C channels, then one per path with feedback_paths
+        first = out["feedback.net.0.weight"]  # (O, 3C [+ P_old], 4, 4)
+        keep = 3 * new.channels + (min(old.paths, new.paths) if old.feedback_paths and new.feedback_paths else 0)
+        add = 3 * new.channels + (new.paths if new.feedback_paths else 0) - keep
+        out["feedback.net.0.weight"] = torch.cat([first[:, :keep], first.new_zeros(first.shape[0], add, 4, 4)], 1)
     step = state.get("codes.step")
     if step is not None and step.shape[0] != new.paths:
         gen = torch.Generator().manual_seed(seed)

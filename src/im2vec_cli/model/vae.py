@@ -10,7 +10,7 @@ from torch import nn
 
 from ..config import ModelConfig
 from ..options import GROUPINGS
-from ..raster import render_supersampled
+from ..raster import render_coverage, render_supersampled
 from ..raster.bezier import flatten_closed, polygon_area
 from .decoder import PathCodes, PathDecoder
 from .encoder import Encoder, Feedback, sample_latent
@@ -62,8 +62,8 @@ class Im2Vec(nn.Module):
             raise ValueError(f"grouping must be one of {GROUPINGS}, got {config.grouping!r}")
         self.config = config
         self.encoder = Encoder(config.image_size, config.channels, config.latent, config.enc_width)
-        self.feedback = (Feedback(config.image_size, config.channels, config.latent, config.enc_width)
-                         if config.feedback else None)
+        self.feedback = (Feedback(config.image_size, config.channels, config.latent, config.enc_width,
+                                  config.paths if config.feedback_paths else 0) if config.feedback else None)
         self.codes = PathCodes(config.latent, config.lstm_hidden, config.code, config.paths)
         self.decoder = PathDecoder(config.code, config.dec_width, config.dec_layers, config.deform, config.deform_width)
         # Distinct start positions: identical initial circles would cancel under even-odd.
@@ -80,14 +80,19 @@ class Im2Vec(nn.Module):
 
     def encode(self, images: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """``(B, C, S, S)`` in [0, 1] -> ``mu, logvar (B, D)``: the encoder's guess, corrected by
-        ``config.feedback`` render-and-compare passes (``Feedback``; the render is an input, not
-        differentiated through)."""
+        ``config.feedback`` render-and-compare passes (``Feedback``; the render, and with
+        ``config.feedback_paths`` each path's coverage, are inputs, not differentiated through)."""
         mu, logvar = self.encoder(images)
+        parts = None
         for _ in range(self.config.feedback):
             with torch.no_grad():
-                seen = self.render(self.decode(mu)).to(images.dtype)  # (B, 3, S, S), default k and tau
+                dec = self.decode(mu)
+                seen = self.render(dec).to(images.dtype)  # (B, 3, S, S), default k and tau
+                if self.config.feedback_paths:  # (B, P, S, S): each path alone
+                    parts = render_coverage(dec.points, size=self.config.image_size, tau=0.4,
+                                            samples=self.config.samples).to(images.dtype)
             seen = seen.mean(1, keepdim=True) if images.shape[1] == 1 else seen
-            mu = self.feedback(images, seen, mu)
+            mu = self.feedback(images, seen, mu, parts)
         return mu, logvar
 
     def decode(self, z: torch.Tensor, segments: int | torch.Tensor | None = None) -> Decoded:
