@@ -185,9 +185,11 @@ class TrainConfig(JsonConfig):
         if not 0.0 <= self.ema < 1.0:
             raise ConfigError(f"TrainConfig.ema must be in [0, 1), got {self.ema}")
         try:
-            if parse_augment(self.augment) and self.outline:
-                raise ValueError("augment moves the pictures away from the outlines the outline loss traced")
+            augments = parse_augment(self.augment)
         except ValueError as e:
             raise ConfigError(f"TrainConfig.augment: {e}") from None
+        if augments and self.outline:
+            raise ConfigError("TrainConfig.augment: augment moves the pictures away from the outlines the outline "
+                              "loss traced")
         if self.train_only not in TRAIN_ONLY:
             raise ConfigError(f"TrainConfig.train_only must be one of {TRAIN_ONLY}, got {self.train_only!r}")

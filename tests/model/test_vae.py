@@ -121,7 +121,7 @@ def test_a_feedback_pass_grown_in_encodes_as_before_then_learns_from_the_render(
     with torch.no_grad():
         assert float(error()) < 0.97 * before  # the paths of a barely trained decoder move little with z
         mu = model.encode(x)[0]
-        model.render = lambda dec: torch.zeros(len(x), 3, 32, 32)  # another render: another step
+        model.render = lambda dec, **kw: torch.zeros(len(x), 3, 32, 32)  # another render: another step
         assert not torch.allclose(model.encode(x)[0], mu)
     with pytest.raises(Im2VecError, match="feedback"):
         ModelConfig(feedback=4, **TINY)

@@ -186,7 +186,8 @@ def grow_state(state: dict[str, torch.Tensor], old: ModelConfig, new: ModelConfi
     untrained, learns. A feedback pass (``feedback``) added starts from fresh weights whose
     step is zero (``Feedback``), so the grown model encodes what ``old`` did; one removed is
     dropped. The per-path inputs of ``feedback_paths`` added to a feedback pass (or new paths'
-    ones) start with zero weights in its first layer, so they too change nothing at first. Every other tensor has the same shape in both configs and is copied.
+    ones) start with zero weights in its first layer, so they too change nothing at first.
+    Every other tensor has the same shape in both configs and is copied.
     """
     import dataclasses
 

@@ -16,6 +16,8 @@ from .decoder import PathCodes, PathDecoder
 from .encoder import Encoder, Feedback, sample_latent
 from .segments import SegmentPredictor, choose_segments
 
+FEEDBACK_TAU = 0.4  # edge softness (px) of the renders a feedback pass sees: trained models depend on it
+
 
 def parse_palette(spec: str) -> torch.Tensor | None:
     """``"#rrggbb,#rrggbb"`` -> ``(K, 3)`` in [0, 1], or ``None`` for an empty spec."""
@@ -87,9 +89,9 @@ class Im2Vec(nn.Module):
         for _ in range(self.config.feedback):
             with torch.no_grad():
                 dec = self.decode(mu)
-                seen = self.render(dec).to(images.dtype)  # (B, 3, S, S), default k and tau
-                if self.config.feedback_paths:  # (B, P, S, S): each path alone
-                    parts = render_coverage(dec.points, size=self.config.image_size, tau=0.4,
+                seen = self.render(dec, tau=FEEDBACK_TAU).to(images.dtype)  # (B, 3, S, S), default k
+                if self.config.feedback_paths:  # (B, P, S, S): each path alone, at the same softness
+                    parts = render_coverage(dec.points, size=self.config.image_size, tau=FEEDBACK_TAU,
                                             samples=self.config.samples).to(images.dtype)
             seen = seen.mean(1, keepdim=True) if images.shape[1] == 1 else seen
             mu = self.feedback(images, seen, mu, parts)
