@@ -77,7 +77,7 @@ def test_supersampled_loss_trains(tmp_path, shapes):
         train(None, tmp_path / "bad", MODEL, fast_cfg(pyramid="nearest"), images=shapes)
 
 
-@pytest.mark.parametrize("augment", ["", "flip,shift"])
+@pytest.mark.parametrize("augment", ["", "flip,scale,shift"])
 def test_resume_is_exact(tmp_path, shapes, augment):
     """A run stopped and resumed ends with the weights of one that ran straight through, the
     augmented batches (``augment``: drawn from the checkpointed generator) included."""

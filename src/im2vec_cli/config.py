@@ -153,7 +153,7 @@ class TrainConfig(JsonConfig):
     distill: float = 0.0  # > 0: weight of the encoder's squared distance to the fitted latents (distill.Teacher)
     distill_images: int = 4096  # training images whose latents the teacher fits (when distill > 0)
     outline: float = 0.0  # > 0: weight of the mean squared distance (px^2) of the traced outlines to the paths (outline_aux)
-    augment: str = ""  # "flip", "shift" or "flip,shift": mirrored / shifted training pictures (data.augment)
+    augment: str = ""  # any of "flip", "scale", "shift", comma-separated: mirrored / scaled / shifted pictures (data.augment)
     train_only: str = ""  # TRAIN_ONLY: "encoder" freezes the rest (the decoder the teacher's latents were fitted to)
     prior_components: int = DEFAULT_COMPONENTS  # Gaussians of the latent prior fitted at the end (fonts: 62)
     prior_shrink: float = DEFAULT_SHRINK  # its covariance shrinkage (model.prior.fit_prior; emoji: 0.05)

@@ -18,7 +18,7 @@ PRIORS = ("auto", "fitted", "normal")  # `sample --prior`: auto is the fitted pr
 GROUPINGS = ("evenodd", "nonzero", "layers")  # ModelConfig.grouping: how paths make shapes
 ARCHS = ("im2vec", "imagevae")  # ModelConfig.arch: the vector model, or the paper's raster baseline
 FITS = ("resize", "pad")  # ModelConfig.fit: how an image smaller than the model square meets it
-AUGMENTS = ("flip", "shift")  # TrainConfig.augment: the kinds it may name, comma-separated (data.augment)
+AUGMENTS = ("flip", "scale", "shift")  # TrainConfig.augment: the kinds it may name, comma-separated (data.augment)
 GROWABLE = ("paths", "grouping", "palette", "feedback", "feedback_paths")  # ModelConfig keys a fine-tune (`train --init`) may change
 
 

@@ -41,8 +41,8 @@ def test_shift_moves_each_picture_by_at_most_two_pixels_and_keeps_its_ink():
 
 def test_the_same_generator_state_draws_the_same_batch_and_no_augment_is_the_batch():
     x = torch.rand(8, 3, 64, 64)
-    a = augment_batch(x, "flip,shift", torch.Generator().manual_seed(5))
-    b = augment_batch(x, "flip,shift", torch.Generator().manual_seed(5))
+    a = augment_batch(x, "flip,scale,shift", torch.Generator().manual_seed(5))
+    b = augment_batch(x, "flip,scale,shift", torch.Generator().manual_seed(5))
     assert torch.equal(a, b) and not torch.equal(a, x)
     assert augment_batch(x, "", torch.Generator()) is x
 
@@ -52,3 +52,19 @@ def test_bad_augment_is_refused_in_the_config():
         TrainConfig(augment="rotate")
     with pytest.raises(ConfigError, match="outline"):
         TrainConfig(augment="flip", outline=0.005)
+
+
+def test_scale_magnifies_each_picture_about_its_centre_by_at_most_an_eighth():
+    x = torch.ones(64, 3, 64, 64)
+    x[:, :, 22:42, 22:42] = 0.0  # a centred 20 px black square
+    y = augment_batch(x, "scale", torch.Generator().manual_seed(2))
+    assert y.shape == x.shape
+    sides = []
+    for a in y:
+        ink = (1 - a[0]).sum(0)  # (W,) the square's darkness per column: its width in px, antialiased
+        width, centre = float(ink.max()), float((ink * torch.arange(64)).sum() / ink.sum())
+        assert 20 * (1 - 1 / 8) - 0.6 <= width <= 20 * (1 + 1 / 8) + 0.6  # the square's side, scaled
+        assert abs(centre - 31.5) < 0.05  # about the centre
+        sides.append(width)
+    assert max(sides) - min(sides) > 3  # a factor drawn per picture
+    assert float(y.max()) <= 1.0 and float(y.min()) >= 0.0 and float(y[:, :, 0, 0].min()) == 1.0  # white stays white
