@@ -225,3 +225,17 @@ def test_config_rejects_unknown_keys_and_types():
     with pytest.raises(Im2VecError, match="latent"):
         ModelConfig.from_dict({"latent": "big"})
     assert ModelConfig.from_dict(ModelConfig(latent=7).to_dict()).latent == 7
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA (cuDNN's flat LSTM weights)")
+def test_an_ema_copy_runs_on_cuda_without_the_rnn_weights_warning():
+    import copy
+    import warnings
+
+    model = Im2Vec(ModelConfig(paths=2, **TINY)).cuda()
+    ema = copy.deepcopy(model).eval()  # what AveragedModel makes: separate weight tensors
+    with warnings.catch_warnings():
+        warnings.filterwarnings("error", message=".*contiguous chunk of memory.*")
+        with torch.no_grad():
+            dec, _, _ = ema(torch.rand(2, 3, 32, 32, device="cuda"), 4)
+    assert dec.points.shape == (2, 2, 12, 2)
