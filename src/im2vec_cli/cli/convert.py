@@ -42,7 +42,8 @@ MAX_SVG_BYTES = 32 * 2**20  # `render` input: an SVG larger than this is refused
 @click.option("--refine/--no-refine", default=True,
               help="Fit the paths to each input by gradient descent through the renderer; several inputs are "
                    "refined in batches. --no-refine: the model's guess alone (tens of milliseconds; with --parts model, "
-                   "milliseconds). [on]")
+                   "milliseconds), for pictures like the model's training set: scans, logos and other "
+                   "sets' pictures need refinement. [on]")
 @click.option("--effort", type=click.Choice(EFFORTS), default="fast", show_default=True,
               help="With refinement: draft (clean outlines traced and fitted, not polished: the quickest), fast "
                    "(about 0.25 s for one 64 px glyph on 2 CPU cores, 40 ms each in a folder of them) or best "
