@@ -49,7 +49,7 @@ from .events import (
     Validated,
 )
 from .files import atomic_write
-from .model import build_model
+from .model import build_model, flatten_rnns
 from .model.losses import reconstruction_loss
 from .model.pretrained import save_pretrained
 from .model.prior import IMAGES_PER_COMPONENT, fit_prior, posterior_means
@@ -124,9 +124,9 @@ class TrainState:
     def create(cls, model: torch.nn.Module, cfg: TrainConfig, rank: int) -> TrainState:
         opt = Lookahead(torch.optim.RAdam(model.parameters(), lr=cfg.lr), cfg.lookahead_k, cfg.lookahead_alpha)
         ema = None
-        if cfg.ema > 0 and rank == 0:  # ema.module: the averaged copy (its first update copies the weights);
-            # only rank 0 validates, previews and saves, and DDP keeps every rank's weights equal
+        if cfg.ema > 0 and rank == 0:  # only rank 0 validates, previews and saves (DDP keeps the ranks equal)
             ema = AveragedModel(model, multi_avg_fn=get_ema_multi_avg_fn(cfg.ema), use_buffers=True)
+            flatten_rnns(ema.module)  # the averaged copy, a deepcopy: its first update copies the weights in place
         return cls(model, opt, ema, torch.Generator().manual_seed(cfg.seed * 1000 + rank))
 
     @property

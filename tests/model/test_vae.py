@@ -1,11 +1,14 @@
+import warnings
+
 import pytest
 import torch
 
-from im2vec_cli.config import ModelConfig
+from im2vec_cli.config import ModelConfig, TrainConfig
 from im2vec_cli.errors import Im2VecError, ModelError
 from im2vec_cli.model.decoder import PathDecoder
 from im2vec_cli.model.pretrained import from_pretrained, save_pretrained
 from im2vec_cli.model.vae import Im2Vec
+from im2vec_cli.train import TrainState
 
 TINY = dict(image_size=32, latent=16, enc_width=8, lstm_hidden=16, code=8, dec_width=16, dec_layers=3, deform_width=8)
 
@@ -229,11 +232,8 @@ def test_config_rejects_unknown_keys_and_types():
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA (cuDNN's flat LSTM weights)")
 def test_an_ema_copy_runs_on_cuda_without_the_rnn_weights_warning():
-    import copy
-    import warnings
-
     model = Im2Vec(ModelConfig(paths=2, **TINY)).cuda()
-    ema = copy.deepcopy(model).eval()  # what AveragedModel makes: separate weight tensors
+    ema = TrainState.create(model, TrainConfig(ema=0.99), rank=0).ema.module.eval()  # AveragedModel's deepcopy
     with warnings.catch_warnings():
         warnings.filterwarnings("error", message=".*contiguous chunk of memory.*")
         with torch.no_grad():

@@ -19,4 +19,13 @@ def build_model(config: ModelConfig) -> nn.Module:
     raise ValueError(f"arch must be 'im2vec' or 'imagevae', got {config.arch!r}")
 
 
-__all__ = ["Decoded", "ImageVAE", "Im2Vec", "build_model"]
+def flatten_rnns(model: nn.Module) -> None:
+    """Gather each LSTM's weights into one cuDNN buffer again (a no-op on the CPU). A deepcopy of
+    a model (the training EMA's) holds them as separate tensors, which cuDNN would copy, with a
+    warning, at every call."""
+    for m in model.modules():
+        if isinstance(m, nn.RNNBase):
+            m.flatten_parameters()
+
+
+__all__ = ["Decoded", "ImageVAE", "Im2Vec", "build_model", "flatten_rnns"]

@@ -108,8 +108,6 @@ class PathCodes(nn.Module):
         # a model in eval mode, which cuDNN's RNN refuses ("backward can only be called in training
         # mode"); PyTorch's own kernels compute the same LSTM (no dropout)
         no_cudnn = seq.is_cuda and torch.is_grad_enabled() and not self.training
-        if seq.is_cuda:  # a copy's weights (the EMA's deepcopy) are separate tensors: one cuDNN buffer
-            self.lstm.flatten_parameters()  # again, else a warning each call (a no-op once flat)
         with torch.backends.cudnn.flags(enabled=False) if no_cudnn else contextlib.nullcontext():
             h, _ = self.lstm(seq)  # (B, P, 2H)
         return self.code(h), self.depth(h).squeeze(-1), torch.sigmoid(self.color(h)), h
