@@ -40,6 +40,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
+from im2vec_cli.config import MAX_FEEDBACK  # noqa: E402
 from im2vec_cli.evaluate import eval_files, reconstruction_l2  # noqa: E402
 from im2vec_cli.files import atomic_write, replace_folder  # noqa: E402
 from im2vec_cli.model.pretrained import export_checkpoint, from_pretrained, stored_half  # noqa: E402
@@ -51,7 +52,7 @@ CURVE_ROWS = 12  # validation rows of the card's curve (evenly spread, the last 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("run", nargs="?", help="The phase's run folder (none with --feedback).")
-    ap.add_argument("--feedback", type=int, choices=(1, 2, 3),
+    ap.add_argument("--feedback", type=int, choices=range(1, MAX_FEEDBACK + 1), metavar="N",
                     help="No run: the shipped model with this many feedback passes, its prior refitted.")
     ap.add_argument("--set", required=True, dest="name")
     ap.add_argument("--data", required=True)

@@ -24,6 +24,9 @@ PYRAMID_MODES = ("blur", "render")  # TrainConfig.pyramid: the coarse levels of 
 TRAIN_ONLY = ("", "encoder")  # TrainConfig.train_only: every weight, or the encoder's alone (the rest frozen)
 DEFAULT_COMPONENTS = 10  # Gaussians of a fitted latent prior (model.prior): chosen by the samples' precision/recall on MNIST
 DEFAULT_SHRINK = 1e-4  # added to each of its covariances' diagonal, in units of the latents' mean variance
+# ModelConfig.feedback: a bound on cost (each pass renders the batch once more), not on quality: how many
+# passes help is a property of each model's weights, measured (bench/ship_phase.py --feedback N)
+MAX_FEEDBACK = 8
 
 
 class JsonConfig:
@@ -108,7 +111,7 @@ class ModelConfig(JsonConfig):
     max_segments: int = 25
     samples: int = 4  # lines per cubic when rasterising
     levels: int = 3  # Gaussian pyramid levels of the loss (eq. 1)
-    feedback: int = 0  # render-and-compare passes correcting the encoder's latent (model.encoder.Feedback), 0 to 3
+    feedback: int = 0  # render-and-compare passes correcting the encoder's latent (model.encoder.Feedback), 0 to MAX_FEEDBACK
     feedback_paths: bool = False  # the feedback pass also sees each path's own coverage (P more input channels)
     segment_predictor: int = 0  # hidden width of the segment-count MLP (sec. 3.3); 0: none (`im2vec train-aux` adds it)
 
@@ -120,8 +123,9 @@ class ModelConfig(JsonConfig):
         for key, low in at_least.items():
             if getattr(self, key) < low:
                 raise ConfigError(f"ModelConfig.{key} must be >= {low}, got {getattr(self, key)}")
-        if self.feedback > 3:
-            raise ConfigError(f"ModelConfig.feedback must be <= 3 (each pass renders the batch once), got {self.feedback}")
+        if self.feedback > MAX_FEEDBACK:
+            raise ConfigError(f"ModelConfig.feedback must be <= {MAX_FEEDBACK} (each pass renders the batch once), "
+                              f"got {self.feedback}")
         if self.feedback_paths and not self.feedback:
             raise ConfigError("ModelConfig.feedback_paths needs feedback >= 1 (it adds inputs to the feedback pass)")
         if self.min_segments > self.max_segments:

@@ -3,7 +3,7 @@ import warnings
 import pytest
 import torch
 
-from im2vec_cli.config import ModelConfig, TrainConfig
+from im2vec_cli.config import MAX_FEEDBACK, ModelConfig, TrainConfig
 from im2vec_cli.errors import Im2VecError, ModelError
 from im2vec_cli.model.decoder import PathDecoder
 from im2vec_cli.model.pretrained import from_pretrained, save_pretrained
@@ -127,7 +127,7 @@ def test_a_feedback_pass_grown_in_encodes_as_before_then_learns_from_the_render(
         model.render = lambda dec, **kw: torch.zeros(len(x), 3, 32, 32)  # another render: another step
         assert not torch.allclose(model.encode(x)[0], mu)
     with pytest.raises(Im2VecError, match="feedback"):
-        ModelConfig(feedback=4, **TINY)
+        ModelConfig(feedback=MAX_FEEDBACK + 1, **TINY)
 
 
 def test_more_feedback_passes_apply_the_one_module_again():
