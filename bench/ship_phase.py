@@ -20,10 +20,13 @@ fp16 export came back in RUN/exported (with export.json, its step), and is measu
 ``--feedback N`` in place of RUN measures a phase without training: the shipped model with
 N render-and-compare passes (``ModelConfig.feedback``; the weights are the same, its one
 ``Feedback`` module applied N times), its latent prior refitted with its own settings to the
-latents those passes give. It ships by the same rule.
+latents those passes give. It ships by the same rule. ``--select`` adds
+``ModelConfig.feedback_select``: per picture, the guess (the encoder's or a pass's) whose render
+is closest to it.
 
     python bench/ship_phase.py RUN --set fonts --data DATA [--limit 1000] [--commit SHA] [--dry-run]
     python bench/ship_phase.py --feedback 3 --set icons --data DATA
+    python bench/ship_phase.py --feedback 8 --select --set fonts --data DATA
 """
 
 from __future__ import annotations
@@ -54,6 +57,8 @@ def main():
     ap.add_argument("run", nargs="?", help="The phase's run folder (none with --feedback).")
     ap.add_argument("--feedback", type=int, choices=range(1, MAX_FEEDBACK + 1), metavar="N",
                     help="No run: the shipped model with this many feedback passes, its prior refitted.")
+    ap.add_argument("--select", action="store_true",
+                    help="With --feedback: keep per picture the pass whose render is closest (feedback_select).")
     ap.add_argument("--set", required=True, dest="name")
     ap.add_argument("--data", required=True)
     ap.add_argument("--limit", type=int, default=1000)
@@ -64,9 +69,11 @@ def main():
     args = ap.parse_args()
     if (args.run is None) == (args.feedback is None):
         ap.error("give either a RUN folder or --feedback N")
+    if args.select and args.feedback is None:
+        ap.error("--select goes with --feedback N")
     shipped = ROOT / "models" / args.name
     run = Path(args.run) if args.run else None
-    scratch = run / "ship" if run else ROOT / "runs" / f"ship-{args.name}-feedback{args.feedback}"
+    scratch = run / "ship" if run else ROOT / "runs" / f"ship-{args.name}-feedback{args.feedback}{'-select' * args.select}"
     if scratch.exists():
         shutil.rmtree(scratch)
     exported = json.loads((run / "export.json").read_text()) if run and (run / "export.json").is_file() else None
@@ -76,7 +83,7 @@ def main():
     elif run:
         _, step = export_checkpoint(run, scratch, half=stored_half(shipped))
     else:
-        step = with_passes(shipped, scratch, args.feedback, Path(args.data) / args.name)
+        step = with_passes(shipped, scratch, args.feedback, Path(args.data) / args.name, args.select)
     test = eval_files(Path(args.data) / args.name, args.limit, 0)
     assets = sorted((ROOT / "tests" / "assets" / f"{args.name}_test").glob("*.png"))
     before, after = measure(shipped, test, assets), measure(scratch, test, assets)
@@ -87,7 +94,7 @@ def main():
     print(("ships" if better else "does not beat the shipped model") + f" (step {step}, {len(test)} test images)")
     if better and not args.dry_run:
         ship(run, scratch, shipped, step, len(test), before, after, args.feedback, args.commit or _commit(),
-             exported and exported.get("device", "GPU"))
+             exported and exported.get("device", "GPU"), args.select)
         print(f"shipped into {shipped}: commit it")
 
 
@@ -101,8 +108,9 @@ def measure(model_dir: Path, test: list[Path], assets: list[Path]) -> dict[str, 
     return out
 
 
-def with_passes(shipped: Path, scratch: Path, passes: int, data: Path) -> int:
-    """``scratch``: the shipped model with ``passes`` feedback passes and its prior refitted
+def with_passes(shipped: Path, scratch: Path, passes: int, data: Path, select: bool = False) -> int:
+    """``scratch``: the shipped model with ``passes`` feedback passes (``select``: and
+    ``feedback_select``) and its prior refitted
     (same components, shrink and seed) to the latents they give; returns the shipped step."""
     from im2vec_cli.api import fit_prior
     from im2vec_cli.config import ModelConfig
@@ -111,7 +119,7 @@ def with_passes(shipped: Path, scratch: Path, passes: int, data: Path) -> int:
     if not config.feedback:
         raise SystemExit(f"{shipped} has no feedback module to apply again: train one first")
     shutil.copytree(shipped, scratch)
-    atomic_write(scratch / "config.json", dataclasses.replace(config, feedback=passes).to_json())
+    atomic_write(scratch / "config.json", dataclasses.replace(config, feedback=passes, feedback_select=select).to_json())
     prior = json.loads((shipped / "latent_prior.json").read_text())
     fit_prior(data, str(scratch), str(scratch), components=prior["components"], seed=prior["seed"],
               shrink=prior.get("shrink", 1e-4), overwrite=True)
@@ -119,7 +127,8 @@ def with_passes(shipped: Path, scratch: Path, passes: int, data: Path) -> int:
 
 
 def ship(run: Path | None, scratch: Path, shipped: Path, step: int, n_test: int, before: dict, after: dict,
-         passes: int | None = None, commit: str = "unknown", device: str | None = None) -> None:
+         passes: int | None = None, commit: str = "unknown", device: str | None = None, select: bool = False
+         ) -> None:
     """``device``: the lent GPU the run trained on (bench/device_phases.py), if it did."""
     metrics = json.loads((shipped / "metrics.json").read_text())
     phase = metrics.get("earlier_phases", 0) + len(metrics.get("phases", [])) + 1  # earlier: before this script
@@ -132,7 +141,7 @@ def ship(run: Path | None, scratch: Path, shipped: Path, step: int, n_test: int,
     entry = {"phase": phase, "date": time.strftime("%Y-%m-%d", time.gmtime()), "commit": commit,
              "steps": step, "steps_added": added, "of_steps": cfg.get("steps", step),
              "minutes": round(_minutes(events), 1), "run_started": started, "test_images": n_test,
-             "before": before, "after": after, **({"feedback": passes} if passes else {}),
+             "before": before, "after": after, **({"feedback": passes, "select": select} if passes else {}),
              **({"device": device} if device else {})}
     # the card's own figure when it was measured on the whole test split (emoji, icons), else the seeded subset's
     key = "test_recon_l2" if metrics.get("test_images") == n_test else f"test_split_{n_test}_recon_l2"
@@ -168,10 +177,13 @@ def card_section(entry: dict, cfg: dict, events: list[dict]) -> str:
     b, a = entry["before"], entry["after"]
     head = [f"## Phase {entry['phase']} ({entry['date']}, code at {entry['commit']}): the shipped weights", ""]
     if "feedback" in entry:
+        sel = entry.get("select")
         lines = head + [f"No training: the weights of phase {entry['phase'] - 1} with {entry['feedback']} "
                         "render-and-compare passes of its one feedback module (`\"feedback\": "
-                        f"{entry['feedback']}` in config.json), the latent prior refitted with its own settings "
-                        f"to the latents they give (`python bench/ship_phase.py --feedback {entry['feedback']}`).", ""]
+                        f"{entry['feedback']}` in config.json)" + (", keeping per picture the guess (the encoder's "
+                        "or a pass's) whose render is closest to it (`\"feedback_select\": true`)" if sel else "")
+                        + ", the latent prior refitted with its own settings to the latents they give "
+                        f"(`python bench/ship_phase.py --feedback {entry['feedback']}{' --select' * bool(sel)}`).", ""]
         return "\n".join(lines + _figures(b, a, entry["test_images"]))
     lines = head + [(f"`python bench/device_phases.py run` on a lent {entry['device']} (`im2vec train DATA --init "
                   "<the shipped model> --config ... --steps <as calibrated> --minutes ... --device cuda`, beside the "
@@ -223,7 +235,8 @@ def phase_span(phases: list[dict], events: list[dict], step: int) -> tuple[int, 
 def training_with(training: dict, entry: dict) -> dict:
     """The card's ``training`` summary (steps, wall, phases) with this phase added."""
     if "feedback" in entry:  # no run: steps and wall stay
-        how = f"phase {entry['phase']}: {entry['feedback']} feedback passes at inference, no training"
+        how = (f"phase {entry['phase']}: {entry['feedback']} feedback passes at inference"
+               + (", the closest kept per picture" if entry.get("select") else "") + ", no training")
         return {**training, "phases": "; ".join(x for x in (training.get("phases"), how) if x)}
     where = f" on a lent {entry['device']}" if "device" in entry else ""  # bench/device_phases.py
     how = (f"the run of phase {entry['phase'] - 1} resumed to {entry['steps']:,} of its {entry['of_steps']:,} steps"

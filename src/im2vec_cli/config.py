@@ -113,6 +113,7 @@ class ModelConfig(JsonConfig):
     levels: int = 3  # Gaussian pyramid levels of the loss (eq. 1)
     feedback: int = 0  # render-and-compare passes correcting the encoder's latent (model.encoder.Feedback), 0 to MAX_FEEDBACK
     feedback_paths: bool = False  # the feedback pass also sees each path's own coverage (P more input channels)
+    feedback_select: bool = False  # at inference, keep per picture the pass whose render is closest to it (one render more)
     segment_predictor: int = 0  # hidden width of the segment-count MLP (sec. 3.3); 0: none (`im2vec train-aux` adds it)
 
     def __post_init__(self):
@@ -128,6 +129,8 @@ class ModelConfig(JsonConfig):
                               f"got {self.feedback}")
         if self.feedback_paths and not self.feedback:
             raise ConfigError("ModelConfig.feedback_paths needs feedback >= 1 (it adds inputs to the feedback pass)")
+        if self.feedback_select and not self.feedback:
+            raise ConfigError("ModelConfig.feedback_select needs feedback >= 1 (it chooses among the passes)")
         if self.min_segments > self.max_segments:
             raise ConfigError(f"ModelConfig.min_segments ({self.min_segments}) is above max_segments ({self.max_segments})")
         for key, allowed in (("arch", ARCHS), ("fit", FITS),

@@ -147,6 +147,37 @@ def test_more_feedback_passes_apply_the_one_module_again():
         assert not torch.allclose(three.encode(x)[0], one.encode(x)[0], atol=1e-4)
 
 
+def test_feedback_select_keeps_per_picture_the_guess_whose_render_is_closest():
+    """``feedback_select``: outside training, each picture's latent is the one of the chain
+    (the encoder's guess, then each pass's) whose render at the passes' softness is closest to
+    it, the chain computed here by hand; in training it is the last pass's, as without it."""
+    from im2vec_cli.model.vae import FEEDBACK_TAU
+
+    torch.manual_seed(0)
+    plain = Im2Vec(ModelConfig(feedback=4, palette="#000000", **TINY))
+    torch.nn.init.normal_(plain.feedback.step.weight, std=0.3)  # passes that move the guess, some the wrong way
+    torch.nn.init.normal_(plain.decoder.net[-1].weight, std=0.05)
+    model = Im2Vec(ModelConfig(feedback=4, feedback_select=True, palette="#000000", **TINY))
+    model.load_state_dict(plain.state_dict())  # strict: no new weights
+    plain.eval(), model.eval()
+    x = torch.rand(6, 3, 32, 32)
+    with torch.no_grad():
+        chain = [plain.encoder(x)[0]]
+        for _ in range(4):
+            chain.append(plain.feedback(x, plain.render(plain.decode(chain[-1]), tau=FEEDBACK_TAU), chain[-1]))
+        err = torch.stack([((plain.render(plain.decode(z), tau=FEEDBACK_TAU) - x) ** 2).flatten(1).mean(1)
+                           for z in chain], 1)  # (B, 5)
+        pick = err.argmin(1)
+        assert len(set(pick.tolist())) > 1  # the test tells pictures apart
+        want = torch.stack(chain, 1)[torch.arange(len(x)), pick]
+        assert torch.allclose(model.encode(x)[0], want, atol=1e-6)
+        assert torch.allclose(plain.encode(x)[0], chain[-1], atol=1e-6)
+        model.train()
+        assert torch.allclose(model.encode(x)[0], chain[-1], atol=1e-6)
+    with pytest.raises(Im2VecError, match="feedback_select"):
+        ModelConfig(feedback_select=True, **TINY)
+
+
 def test_per_path_inputs_grown_into_a_feedback_pass_change_nothing_until_trained():
     """``feedback_paths`` added to a feedback model by a fine-tune: its first layer gets zero
     weights for the P coverage channels, so the grown model encodes exactly as before; weights

@@ -83,19 +83,32 @@ class Im2Vec(nn.Module):
     def encode(self, images: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """``(B, C, S, S)`` in [0, 1] -> ``mu, logvar (B, D)``: the encoder's guess, corrected by
         ``config.feedback`` render-and-compare passes (``Feedback``; the render, and with
-        ``config.feedback_paths`` each path's coverage, are inputs, not differentiated through)."""
+        ``config.feedback_paths`` each path's coverage, are inputs, not differentiated through).
+
+        With ``config.feedback_select``, outside training, ``mu`` is per picture the guess (the
+        encoder's or a pass's) whose render is closest to it in mean squared error: a module
+        trained for some passes helps most pictures with more and drifts on a few, and the render
+        each pass draws anyway tells which. It costs one render more (of the last guess)."""
+        cfg = self.config
         mu, logvar = self.encoder(images)
-        parts = None
-        for _ in range(self.config.feedback):
+        select = cfg.feedback_select and not self.training
+        best, best_err, parts = mu, None, None
+        for i in range(cfg.feedback + select):
             with torch.no_grad():
                 dec = self.decode(mu)
                 seen = self.render(dec, tau=FEEDBACK_TAU).to(images.dtype)  # (B, 3, S, S), default k
-                if self.config.feedback_paths:  # (B, P, S, S): each path alone, at the same softness
-                    parts = render_coverage(dec.points, size=self.config.image_size, tau=FEEDBACK_TAU,
-                                            samples=self.config.samples).to(images.dtype)
+                if cfg.feedback_paths and i < cfg.feedback:  # (B, P, S, S): each path alone, same softness
+                    parts = render_coverage(dec.points, size=cfg.image_size, tau=FEEDBACK_TAU,
+                                            samples=cfg.samples).to(images.dtype)
             seen = seen.mean(1, keepdim=True) if images.shape[1] == 1 else seen
-            mu = self.feedback(images, seen, mu, parts)
-        return mu, logvar
+            if select:
+                err = (seen - images).pow(2).flatten(1).mean(1)  # (B,)
+                closer = err < best_err if best_err is not None else torch.ones_like(err, dtype=torch.bool)
+                best = torch.where(closer[:, None], mu, best)
+                best_err = err if best_err is None else torch.minimum(err, best_err)
+            if i < cfg.feedback:
+                mu = self.feedback(images, seen, mu, parts)
+        return (best if select else mu), logvar
 
     def decode(self, z: torch.Tensor, segments: int | torch.Tensor | None = None) -> Decoded:
         """``z (B, D)`` -> closed cubic paths.
