@@ -53,6 +53,20 @@ def test_a_phase_of_feedback_passes_adds_no_steps_and_says_so_on_the_card():
     assert "Validation" not in card
 
 
+def test_a_phase_that_keeps_the_closest_pass_says_so_on_the_card_and_in_the_summary():
+    figures = {"test_recon_l2": 0.0359, "test_recon_l2_stderr": 0.0009, "assets_recon_l2": 0.0345,
+               "assets_fitted_recon_l2": 0.0042}
+    entry = {"phase": 16, "date": "2026-12-05", "commit": "abc1234", "steps": 25738, "steps_added": 0,
+             "of_steps": 25738, "minutes": 0.0, "test_images": 749, "feedback": 8, "select": True,
+             "before": figures, "after": figures}
+    card = card_section(entry, {}, [])
+    assert '(`"feedback_select": true`)' in card and "`python bench/ship_phase.py --feedback 8 --select`" in card
+    assert training_with({}, entry)["phases"] == ("phase 16: 8 feedback passes at inference, the closest kept per "
+                                                  "picture, no training")
+    plain = card_section({**entry, "select": False}, {}, [])
+    assert "feedback_select" not in plain and "--select" not in plain
+
+
 def test_shipping_names_the_commit_it_is_given_and_replaces_only_the_model_files(tmp_path):
     shipped, scratch = tmp_path / "shipped", tmp_path / "scratch"
     shipped.mkdir()
