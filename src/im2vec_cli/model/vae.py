@@ -92,7 +92,7 @@ class Im2Vec(nn.Module):
         cfg = self.config
         mu, logvar = self.encoder(images)
         select = cfg.feedback_select and not self.training
-        best, best_err, parts = mu, None, None
+        best, best_err, parts = mu, mu.new_full((len(mu),), math.inf), None
         for i in range(cfg.feedback + select):
             with torch.no_grad():
                 dec = self.decode(mu)
@@ -103,9 +103,8 @@ class Im2Vec(nn.Module):
             seen = seen.mean(1, keepdim=True) if images.shape[1] == 1 else seen
             if select:
                 err = (seen - images).pow(2).flatten(1).mean(1)  # (B,)
-                closer = err < best_err if best_err is not None else torch.ones_like(err, dtype=torch.bool)
-                best = torch.where(closer[:, None], mu, best)
-                best_err = err if best_err is None else torch.minimum(err, best_err)
+                best = torch.where((err < best_err)[:, None], mu, best)
+                best_err = torch.minimum(err, best_err)
             if i < cfg.feedback:
                 mu = self.feedback(images, seen, mu, parts)
         return (best if select else mu), logvar
