@@ -43,12 +43,13 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
-from im2vec_cli.config import MAX_FEEDBACK  # noqa: E402
+from im2vec_cli.config import DEFAULT_NEIGHBOURS, MAX_FEEDBACK  # noqa: E402
 from im2vec_cli.evaluate import eval_files, reconstruction_l2  # noqa: E402
 from im2vec_cli.files import atomic_write, replace_folder  # noqa: E402
 from im2vec_cli.model.pretrained import export_checkpoint, from_pretrained, stored_half  # noqa: E402
 
-MODEL_FILES = ("config.json", "model.safetensors", "latent_prior.json", "latent_prior.safetensors")
+MODEL_FILES = ("config.json", "model.safetensors", "latent_prior.json", "latent_prior.safetensors",
+               "latent_neighbours.json", "latent_neighbours.safetensors")  # a phase's own: never kept from the shipped
 CURVE_ROWS = 12  # validation rows of the card's curve (evenly spread, the last one always)
 
 
@@ -82,6 +83,13 @@ def main():
         step = exported["step"]
     elif run:
         _, step = export_checkpoint(run, scratch, half=stored_half(shipped))
+        near = shipped / "latent_neighbours.json"
+        if near.is_file() and not (scratch / near.name).is_file():  # the run stopped before it fitted one
+            from im2vec_cli.api import fit_neighbours
+
+            cfg = json.loads(near.read_text())
+            fit_neighbours(Path(args.data) / args.name, str(scratch), str(scratch), neighbours=cfg["neighbours"],
+                           seed=cfg["seed"], overwrite=True)
     else:
         step = with_passes(shipped, scratch, args.feedback, Path(args.data) / args.name, args.select)
     test = eval_files(Path(args.data) / args.name, args.limit, 0)
@@ -110,8 +118,8 @@ def measure(model_dir: Path, test: list[Path], assets: list[Path]) -> dict[str, 
 
 def with_passes(shipped: Path, scratch: Path, passes: int, data: Path, select: bool = False) -> int:
     """``scratch``: the shipped model with ``passes`` feedback passes (``select``: and
-    ``feedback_select``) and its prior refitted
-    (same components, shrink and seed) to the latents they give; returns the shipped step."""
+    ``feedback_select``) and its priors refitted
+    (same components, shrink, neighbours and seed) to the latents they give; returns the shipped step."""
     from im2vec_cli.api import fit_prior
     from im2vec_cli.config import ModelConfig
 
@@ -121,8 +129,10 @@ def with_passes(shipped: Path, scratch: Path, passes: int, data: Path, select: b
     shutil.copytree(shipped, scratch)
     atomic_write(scratch / "config.json", dataclasses.replace(config, feedback=passes, feedback_select=select).to_json())
     prior = json.loads((shipped / "latent_prior.json").read_text())
+    near = shipped / "latent_neighbours.json"
+    k = json.loads(near.read_text())["neighbours"] if near.is_file() else DEFAULT_NEIGHBOURS
     fit_prior(data, str(scratch), str(scratch), components=prior["components"], seed=prior["seed"],
-              shrink=prior.get("shrink", 1e-4), overwrite=True)
+              shrink=prior.get("shrink", 1e-4), neighbours=k, overwrite=True)
     return json.loads((shipped / "metrics.json").read_text()).get("step", 0)
 
 

@@ -271,26 +271,31 @@ def _table2(results, args) -> list[str]:
         "",
         "## Table 2: generation and interpolation",
         "",
-        f"Generation: {args.samples} latents from the prior (the *prior* column: the model's fitted latent prior",
-        "where it has one, else N(0, I); rows of N(0, I) kept from a run before the fitted prior were decoded as",
+        f"Generation: {args.samples} latents from the prior (the *prior* column: what `sample` draws from,",
+        "the model's neighbour prior where it stores one, else its fitted mixture, else N(0, I); rows of N(0, I)",
+        "kept from a run before the fitted prior were decoded as",
         f"the model's even-odd paths), decoded; interpolation: {args.pairs} random",
         "training pairs, 4 evenly spaced interpolants each. Each image is scored by the MSE to its",
         "nearest training image at the model size (lower: closer to the data; a model that copies",
         "its training set scores 0, so this says little of quality: see *Sample quality* below).",
+        "*Test images*: the test pictures scored the same way, how far new real pictures lie from the",
+        "training set; samples well below it are near copies of training pictures (the neighbour prior",
+        "draws between two training pictures' latents, so its samples are decoded mixtures of two close ones).",
         "",
-        "| dataset | model | generation L2 | prior | interpolation L2 | training images |",
-        "|---|---|---|---|---|---|",
+        "| dataset | model | generation L2 | prior | test images | interpolation L2 | training images |",
+        "|---|---|---|---|---|---|---|",
     ]
     for label, r in results.items():
         if "generation_l2" in r:
             kind = "ImageVAE (baseline)" if r["arch"] == "imagevae" else "Im2Vec"
+            held = fmt(r, "held_out_l2") if "held_out_l2" in r else "–"
             L.append(f"| {label.split()[0]} | {kind} | {fmt(r, 'generation_l2')} | {r.get('generation_prior', 'normal')} | "
-                     f"{fmt(r, 'interpolation_l2')} | {r['train_images']:,} |")
+                     f"{held} | {fmt(r, 'interpolation_l2')} | {r['train_images']:,} |")
     return L
 
 
 def _samples(results) -> list[str]:
-    """Improved precision and recall (k = 3) of the samples, with the fitted prior and N(0, I)."""
+    """Improved precision and recall (k = 3) of the samples, with each prior the model has and N(0, I)."""
     rows = {k: r for k, r in results.items() if "precision" in r}
     if not rows:
         return []
@@ -307,8 +312,9 @@ def _samples(results) -> list[str]:
         "1,000 test images (all the test split where smaller); *p ≥ 0.9*: the share of samples the",
         "classifier labels with probability at least 0.9 (of test images: last column). Samples are",
         "rendered by cairosvg from the SVGs `sample` writes; the ImageVAE's are its raster output.",
-        "*fitted*: the Gaussian mixture fitted to the training set's latents (`latent_prior.safetensors`,",
-        "what `sample` uses); *N(0, I)*: the VAE prior, what `sample` drew from before.",
+        "*neighbours*: between the latents of two training pictures that are near neighbours",
+        "(`latent_neighbours.safetensors`, what `sample` uses where the model stores it); *fitted*: the Gaussian",
+        "mixture fitted to the training set's latents (`latent_prior.safetensors`); *N(0, I)*: the VAE prior.",
         "",
         "| dataset | model | prior | precision | recall | p ≥ 0.9 | feature net (test) | p ≥ 0.9 of test images |",
         "|---|---|---|---|---|---|---|---|",
@@ -317,11 +323,12 @@ def _samples(results) -> list[str]:
         kind = "ImageVAE (baseline)" if r["arch"] == "imagevae" else "Im2Vec"
         acc = r.get("features_test_accuracy", -1)
         net = f"accuracy {acc:.3f}" if acc >= 0 else "autoencoder"
-        runs = [(r["prior"], r)] + ([("normal", r["sample_quality_normal"])] if "sample_quality_normal" in r else [])
+        runs = [(r["prior"], r)] + [(p, r[f"sample_quality_{p}"]) for p in ("neighbours", "fitted", "normal")
+                                    if f"sample_quality_{p}" in r]
         for prior, q in runs:
             conf = f"{q['confident']:.3f}" if "confident" in q else "–"
             conf_test = f"{q['confident_test']:.3f}" if "confident_test" in q else "–"
-            name = "fitted" if prior == "fitted" else "N(0, I)"
+            name = {"normal": "N(0, I)"}.get(prior, prior)
             L.append(f"| {label.split()[0]} | {kind} | {name} | {q['precision']:.3f} | {q['recall']:.3f} | {conf} | "
                      f"{net} | {conf_test} |")
     return L

@@ -1,8 +1,9 @@
 """Contact sheets of `im2vec sample` for every shipped model, next to random test images.
 
-For each model: 24 samples drawn by the tool from N(0, I) (`--prior normal`, what `sample`
-gave before the fitted prior), 24 from the model's fitted prior (the default), and 24 random
-images of the model's test split (DATA/NAME/test when built, else tests/assets/NAME_test).
+For each model: 24 samples drawn by the tool from the Gaussian mixture fitted to the training
+latents (`--prior fitted`, what `sample` gave before the neighbour prior), 24 from what `sample`
+draws from by default (the neighbour prior where the model stores one), and 24 random images of
+the model's test split (DATA/NAME/test when built, else tests/assets/NAME_test).
 
 Usage: python docs/make_sample_sheets.py [--data DATA] [--out docs/samples] [--seed 0] [--only emoji,icons]
 """
@@ -20,6 +21,7 @@ from PIL import Image, ImageDraw
 
 from im2vec_cli.data.folder import list_images
 from im2vec_cli.model.pretrained import REPO_MODELS
+from im2vec_cli.model.prior import NEIGHBOURS_CONFIG
 
 N, COLUMNS, CELL = 24, 8, 96  # CELL: `sample`'s contact sheet cell
 ROOT = Path(__file__).resolve().parents[1]
@@ -73,9 +75,12 @@ def main() -> None:
             if not (REPO_MODELS / name).is_dir() or (args.only and name not in args.only.split(",")):
                 continue
             real, where = test_sheet(name, args.data, args.seed)
-            panels = [(f"{name}: im2vec sample --prior normal (N(0, I), before)", sample_sheet(name, "normal", args.seed, Path(tmp))),
-                      (f"{name}: im2vec sample (the fitted latent prior)", sample_sheet(name, "auto", args.seed, Path(tmp))),
-                      (f"{name}: random test images ({where})", real)]
+            panels = [(f"{name}: im2vec sample --prior fitted (the Gaussian mixture)",
+                       sample_sheet(name, "fitted", args.seed, Path(tmp)))]
+            if (REPO_MODELS / name / NEIGHBOURS_CONFIG).is_file():
+                panels.append((f"{name}: im2vec sample (the default: the neighbour prior)",
+                               sample_sheet(name, "neighbours", args.seed, Path(tmp))))
+            panels.append((f"{name}: random test images ({where})", real))
             labelled(panels).save(args.out / f"{name}.png")
             print(f"wrote {args.out / name}.png", flush=True)
 

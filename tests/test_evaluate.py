@@ -8,7 +8,7 @@ from click.testing import CliRunner
 from PIL import Image
 
 from im2vec_cli.cli import cli
-from im2vec_cli.evaluate import decoded_images, generation_l2, nearest_mse, reconstruction_l2
+from im2vec_cli.evaluate import decoded_images, generation_l2, held_out_l2, nearest_mse, reconstruction_l2
 from im2vec_cli.model.pretrained import from_pretrained
 from im2vec_cli.vector import VectorImage, VectorShape, rasterize_svg, to_svg
 from tests.helpers import make_tiny_model, polyline_as_cubic
@@ -34,6 +34,19 @@ def test_generation_l2_is_zero_when_training_set_holds_the_samples(tmp_path):
     assert res["generation_l2"] < 1e-5 and res["generated"] == 20
     other = torch.full_like(train, 255)  # an all-white "training set": a clearly positive score
     assert generation_l2(model, other, samples=20, seed=0)["generation_l2"] > 1e-3
+
+
+def test_held_out_l2_measures_test_pictures_at_the_model_size_against_the_training_set(tmp_path):
+    """A test picture that is a training picture (at another size: brought to the model's) scores 0;
+    a white one against black training pictures scores 1."""
+    g = torch.Generator().manual_seed(1)
+    train = (torch.rand(6, 3, 16, 16, generator=g) > 0.5).to(torch.uint8) * 255
+    big = train[2].repeat_interleave(4, 1).repeat_interleave(4, 2)  # the same picture at 64 px, nearest-upsampled
+    Image.fromarray(big.permute(1, 2, 0).numpy()).save(tmp_path / "copy.png")
+    Image.new("RGB", (20, 20), (255, 255, 255)).save(tmp_path / "white.png")
+    res = held_out_l2([tmp_path / "copy.png"], train, 16, "resize")
+    assert res["held_out_l2"] < 1e-3 and res["held_out"] == 1
+    assert held_out_l2([tmp_path / "white.png"], torch.zeros_like(train), 16, "resize")["held_out_l2"] == 1.0
 
 
 def test_reconstruction_l2_is_zero_for_a_flat_image_and_positive_otherwise(tmp_path):
@@ -63,8 +76,9 @@ def test_eval_command_with_train_data(tmp_path):
     assert r["images"] == 3 and r["generated"] == 8 and r["interpolants"] == 12 and r["train_images"] == 12
     for key in ("recon_l2", "generation_l2", "interpolation_l2"):
         assert 0 <= r[key] <= 1
+    assert r["held_out"] == 3 and r["held_out_l2"] < 1e-6  # the three test pictures are training pictures too
     md = (tmp_path / "r.md").read_text()
-    assert "generation L2 (Table 2)" in md and md.count("\n") == 6 and "paths / segments per image" in md
+    assert "generation L2 (Table 2)" in md and md.count("\n") == 7 and "paths / segments per image" in md
 
 
 def test_eval_missing_train_data_is_one_error_line(tmp_path):

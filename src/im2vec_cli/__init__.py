@@ -12,7 +12,7 @@ __version__ = "0.1.0"
 # train, train_aux, train_features and project are in im2vec_cli.api only: the package's modules of those
 # names (the training pipelines) would shadow them here
 _API = ("load_model", "vectorize", "vectorize_each", "encode", "decode", "sample", "prior_latents", "interpolate", "fit_prior",
-        "load_feature_net", "export")
+        "fit_neighbours", "load_feature_net", "export")
 __all__ = ["__version__", "VectorImage", "VectorShape", "VectorizeOptions", *_API]
 
 

@@ -32,7 +32,7 @@ import torch
 from . import infer
 from . import project as projection
 from . import refine as refinement
-from .config import DEFAULT_COMPONENTS, DEFAULT_SHRINK
+from .config import DEFAULT_COMPONENTS, DEFAULT_NEIGHBOURS, DEFAULT_SHRINK
 from .errors import ConfigError, ModelError, VectorizeError, describe
 from .events import Encoding, Event, FeatureData, FeatureTest, Measuring, Skipped
 from .files import as_image
@@ -43,9 +43,9 @@ from .runtime import resolve_device
 from .trace import simplify
 from .vector import VectorImage
 
-__all__ = ["VectorizeOptions", "decode", "encode", "export", "fit_prior", "interpolate", "load_feature_net",
-           "load_model", "prior_latents", "project", "sample", "train", "train_aux", "train_features", "vectorize",
-           "vectorize_each"]
+__all__ = ["VectorizeOptions", "decode", "encode", "export", "fit_neighbours", "fit_prior", "interpolate",
+           "load_feature_net", "load_model", "prior_latents", "project", "sample", "train", "train_aux", "train_features",
+           "vectorize", "vectorize_each"]
 
 
 def load_model(name_or_dir: str = DEFAULT_MODEL, device: str | torch.device = "auto"):
@@ -301,27 +301,66 @@ def _model_and_images(model, output, overwrite: bool, data_dir, emit):
 
 
 def fit_prior(data_dir, model, output, *, components: int = DEFAULT_COMPONENTS, seed: int = 0,
-              overwrite: bool = False, shrink: float = DEFAULT_SHRINK, on_event=None):
-    """Fit the latent density ``sample`` draws from to ``data_dir``'s images (``DATA/train`` when it exists) and
-    write the model with it to ``output`` (its own folder: only its prior, with ``overwrite``); ``shrink``:
-    ``model.prior.fit_prior``'s. Returns the ``LatentPrior``."""
+              overwrite: bool = False, shrink: float = DEFAULT_SHRINK, neighbours: int | None = None,
+              on_event=None):
+    """Fit the latent densities ``sample`` draws from to ``data_dir``'s images (``DATA/train`` when it
+    exists) and write the model with them to ``output`` (its own folder: only its priors, with
+    ``overwrite``): the Gaussian mixture (``components``, ``shrink``: ``model.prior.fit_prior``'s)
+    and, unless ``neighbours`` is 0, the neighbour prior (``model.prior.fit_neighbours``; ``None``:
+    ``DEFAULT_NEIGHBOURS``, fewer for a small set; 0 drops a stored one, fitted to other weights).
+    Returns the ``LatentPrior``."""
     from .files import replace_folder
-    from .model.pretrained import save_pretrained, stored_half
+    from .model.pretrained import save_pretrained, save_priors, stored_half
+    from .model.prior import MAX_ANCHORS, fit_neighbours, posterior_means
     from .model.prior import fit_prior as fit
-    from .model.prior import posterior_means
 
     emit = on_event or (lambda e: None)
     source, model, in_place, data = _model_and_images(model, output, overwrite, data_dir, emit)
     if components > max(1, len(data) // 2):
         raise ConfigError(f"components {components}: at most half the {len(data)} images")
+    if neighbours is None:
+        neighbours = min(DEFAULT_NEIGHBOURS, min(len(data), MAX_ANCHORS) - 1)
+    elif neighbours and not neighbours < min(len(data), MAX_ANCHORS):
+        raise ConfigError(f"neighbours {neighbours}: fewer than the {min(len(data), MAX_ANCHORS)} images it chooses from")
     emit(Encoding(len(data)))
-    prior = fit(posterior_means(model, data), components, seed=seed, data=str(data_dir), shrink=shrink)
+    mu = posterior_means(model, data)
+    prior = fit(mu, components, seed=seed, data=str(data_dir), shrink=shrink)
+    near = fit_neighbours(mu, neighbours, seed=seed, data=str(data_dir)) if neighbours else None
+    model.latent_prior, model.neighbour_prior = prior, near
     if in_place:
-        prior.save(output)
+        save_priors(model, output)
     else:
-        model.latent_prior, half = prior, source is not None and stored_half(source)  # weights stay as stored
+        half = source is not None and stored_half(source)  # weights stay as stored
         replace_folder(output, lambda folder: save_pretrained(model, folder, half=half))
     return prior
+
+
+def fit_neighbours(data_dir, model, output, *, neighbours: int | None = None, seed: int = 0,
+                   overwrite: bool = False, on_event=None):
+    """Fit only the neighbour prior (``model.prior.NeighbourPrior``; the mixture stays as stored) to
+    ``data_dir``'s training images and write the model with it to ``output`` as ``fit_prior`` does.
+    It encodes only the images the prior keeps (``model.prior.anchor_rows``): the prior ``fit_prior``
+    fits with the same ``seed``, in seconds where the mixture's every image takes minutes.
+    Returns the ``NeighbourPrior``."""
+    from .files import replace_folder
+    from .model.pretrained import save_pretrained, save_priors, stored_half
+    from .model.prior import MAX_ANCHORS, anchor_rows, posterior_means
+    from .model.prior import fit_neighbours as fit
+
+    emit = on_event or (lambda e: None)
+    source, model, in_place, data = _model_and_images(model, output, overwrite, data_dir, emit)
+    k = min(DEFAULT_NEIGHBOURS, min(len(data), MAX_ANCHORS) - 1) if neighbours is None else neighbours
+    if not 1 <= k < min(len(data), MAX_ANCHORS):
+        raise ConfigError(f"neighbours {k}: at least 1 and fewer than the {min(len(data), MAX_ANCHORS)} images it chooses from")
+    rows = anchor_rows(len(data), seed)
+    emit(Encoding(len(rows)))
+    model.neighbour_prior = fit(posterior_means(model, data[rows]), k, seed=seed, data=str(data_dir), images=len(data))
+    if in_place:
+        save_priors(model, output)
+    else:
+        half = source is not None and stored_half(source)
+        replace_folder(output, lambda folder: save_pretrained(model, folder, half=half))
+    return model.neighbour_prior
 
 
 def train_aux(data_dir, model, output, *, images: int = 2048, steps: int = 3000, seed: int = 0,

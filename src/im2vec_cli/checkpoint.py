@@ -61,7 +61,7 @@ def load_checkpoint(path: str | Path) -> dict:
 
 TEACHER_FILE = "teacher.safetensors"  # a distillation run's fitted latents (distill.Teacher)
 RUN_FILES = ("checkpoint.pt", "metrics.jsonl", "train_config.json", "latent_prior.json", "latent_prior.safetensors",
-             "model", "preview_*.png", TEACHER_FILE)  # what a run writes: a new run in its folder starts without them
+             "latent_neighbours.json", "latent_neighbours.safetensors", "model", "preview_*.png", TEACHER_FILE)  # what a run writes: a new run in its folder starts without them
 
 
 def prepare_run_dir(run_dir: Path, resume: bool, overwrite: bool, data_dir: str | Path | None = None) -> None:

@@ -23,6 +23,7 @@ FORMAT_VERSION = 1
 PYRAMID_MODES = ("blur", "render")  # TrainConfig.pyramid: the coarse levels of the loss (raster.render_pyramid)
 TRAIN_ONLY = ("", "encoder")  # TrainConfig.train_only: every weight, or the encoder's alone (the rest frozen)
 DEFAULT_COMPONENTS = 10  # Gaussians of a fitted latent prior (model.prior): chosen by the samples' precision/recall on MNIST
+DEFAULT_NEIGHBOURS = 8  # nearest training latents a neighbour prior steps towards (model.prior.NeighbourPrior)
 DEFAULT_SHRINK = 1e-4  # added to each of its covariances' diagonal, in units of the latents' mean variance
 # ModelConfig.feedback: a bound on cost (each pass renders the batch once more), not on quality: how many
 # passes help is a property of each model's weights, measured (bench/ship_phase.py --feedback N)
@@ -164,6 +165,7 @@ class TrainConfig(JsonConfig):
     train_only: str = ""  # TRAIN_ONLY: "encoder" freezes the rest (the decoder the teacher's latents were fitted to)
     prior_components: int = DEFAULT_COMPONENTS  # Gaussians of the latent prior fitted at the end (fonts: 62)
     prior_shrink: float = DEFAULT_SHRINK  # its covariance shrinkage (model.prior.fit_prior; emoji: 0.05)
+    prior_neighbours: int = DEFAULT_NEIGHBOURS  # k of the neighbour prior fitted beside it (0: none; model.prior.fit_neighbours)
     seed: int = 0
     val_fraction: float = 0.05
     val_every: int = 250
@@ -187,6 +189,8 @@ class TrainConfig(JsonConfig):
             raise ConfigError(f"TrainConfig.seed must be in [0, 2^32), got {self.seed}")
         if self.supersample < 1:
             raise ConfigError(f"TrainConfig.supersample must be >= 1, got {self.supersample}")
+        if self.prior_neighbours < 0:
+            raise ConfigError(f"TrainConfig.prior_neighbours must be >= 0, got {self.prior_neighbours}")
         if self.pyramid not in PYRAMID_MODES:
             raise ConfigError(f"TrainConfig.pyramid must be one of {PYRAMID_MODES}, got {self.pyramid!r}")
         if not 0.0 <= self.ema < 1.0:

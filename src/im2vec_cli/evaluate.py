@@ -34,6 +34,7 @@ from .errors import DataError, Im2VecError, InputError
 from .files import load_image
 from .frame import fit_square, resize_square
 from .infer import (
+    STORED_PRIORS,
     decode,
     encode,
     lerp_latents,
@@ -41,6 +42,7 @@ from .infer import (
     reconstruct_raster,
     resolve_prior,
     sample_temperature,
+    stored_prior,
     vectorize,
 )
 from .model.vae import Im2Vec
@@ -251,6 +253,15 @@ def generation_l2(model: Im2Vec, train: torch.Tensor, *, samples: int = 1000, se
     return {**mean_stderr("generation_l2", e), "generated": len(e), "generation_prior": resolve_prior(model, prior)}
 
 
+def held_out_l2(files: list[Path], train: torch.Tensor, size: int, fit: str) -> dict[str, float]:
+    """Table 2's yardstick for ``generation_l2``: each test picture (``files``, brought to the model
+    size as it fits pictures) scored the same way, by the MSE to its nearest training image. New
+    real pictures lie this far from the training set; samples much nearer than them are close
+    copies of training pictures more than new pictures of the kind."""
+    x = torch.stack([fit_square(load_image(f), size, fit) for f in files])  # (N, 3, S, S) in [0, 1]
+    return {**mean_stderr("held_out_l2", nearest_mse(x, train).tolist()), "held_out": len(files)}
+
+
 def interpolation_l2(model: Im2Vec, train: torch.Tensor, *, pairs: int = 250, steps: int = 4, seed: int = 0,
                      segments: int | None = None) -> dict[str, float]:
     """Table 2, interpolation: ``pairs`` random training pairs, ``steps`` evenly spaced
@@ -349,8 +360,8 @@ def sample_quality(model, net, pictures: list[torch.Tensor], *, samples: int = 1
     samples it labels with probability >= ``CONFIDENT`` (and of the pictures). Both are brought
     into the net's frame: the pictures fitted its way, the samples (in the model's frame) first
     mapped back to the pictures' size when the model fits pictures another way (an MNIST model
-    that resizes, a net that pads). With ``prior="auto"`` and a fitted prior, the same for
-    N(0, I) under ``sample_quality_normal``, for comparison."""
+    that resizes, a net that pads). With ``prior="auto"``, the same for
+    the other priors the model has and N(0, I) under ``sample_quality_<prior>``, for comparison."""
     size, fit = net.config.image_size, net.config.fit
     if size != model.config.image_size:
         raise Im2VecError(f"the feature net takes {size} px images, the model draws {model.config.image_size} px")
@@ -372,6 +383,8 @@ def sample_quality(model, net, pictures: list[torch.Tensor], *, samples: int = 1
         return out
 
     out = scores(prior)
-    if prior == "auto" and out["prior"] == "fitted":
-        out["sample_quality_normal"] = scores("normal")
+    if prior == "auto":  # the others the model has, for comparison
+        for other in [p for p in STORED_PRIORS if stored_prior(model, p) is not None] + ["normal"]:
+            if other != out["prior"]:
+                out[f"sample_quality_{other}"] = scores(other)
     return out

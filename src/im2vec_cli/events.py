@@ -124,7 +124,7 @@ class NoPrior(Event, kind="no_prior"):
 
 
 class Encoding(Event, kind="encode"):
-    """``fit_prior`` encodes ``images`` images."""
+    """``fit_prior`` (``fit_neighbours``: the anchors only) encodes ``images`` images."""
     images: int
 
 

@@ -176,36 +176,48 @@ def decode(model: Im2Vec, z: torch.Tensor, *, segments: int | None = None, keep_
 
 
 def resolve_prior(model, prior: str = "auto") -> str:
-    """``"fitted"`` or ``"normal"``: the prior ``prior_latents`` draws from for ``prior``."""
+    """``"neighbours"``, ``"fitted"`` or ``"normal"``: the prior ``prior_latents`` draws from for
+    ``prior`` (``"auto"``: the first of them the model has; ``ModelError`` when asked for one it lacks)."""
     if prior not in PRIORS:
         raise ValueError(f"prior must be one of {PRIORS}, got {prior!r}")
-    fitted = getattr(model, "latent_prior", None) is not None
-    if prior == "fitted" and not fitted:
-        raise ModelError(f"model {getattr(model, 'name', '?')!r} has no fitted latent prior "
-                         "(add one with `im2vec fit-prior`, or use prior='normal')")
-    return "fitted" if prior != "normal" and fitted else "normal"
+    if prior == "auto":
+        return next((p for p in STORED_PRIORS if stored_prior(model, p) is not None), "normal")
+    if prior != "normal" and stored_prior(model, prior) is None:
+        how = "`im2vec fit-prior --neighbours K`" if prior == "neighbours" else "`im2vec fit-prior`"
+        raise ModelError(f"model {getattr(model, 'name', '?')!r} has no {prior} latent prior "
+                         f"(add one with {how}, or use prior='normal')")
+    return prior
+
+
+STORED_PRIORS = ("neighbours", "fitted")  # what a model folder may store, in the order "auto" prefers them
+
+
+def stored_prior(model, which: str):
+    """``model.neighbour_prior`` (``model.prior.NeighbourPrior``) or ``model.latent_prior`` (``LatentPrior``), or ``None``."""
+    return getattr(model, "neighbour_prior" if which == "neighbours" else "latent_prior", None)
 
 
 def prior_latents(model, n: int, *, seed: int = 0, temperature: float | None = None,
                   prior: str = "auto") -> torch.Tensor:
     """``n`` latents ``(n, D)`` float32 drawn with their own generator seeded by ``seed``: from
-    ``model.latent_prior`` (``"fitted"``, or ``"auto"`` when the model has one) or N(0, I)
-    (``"normal"``), standard deviations scaled by ``temperature`` (``None``: the fitted prior's
-    stored one, 1 for N(0, I); ``sample_temperature``)."""
+    the prior ``resolve_prior`` names (``model.neighbour_prior``, ``model.latent_prior``) or N(0, I),
+    at ``temperature`` (``None``: the stored prior's own, 1 for N(0, I); ``sample_temperature``)."""
     if n < 1:
         raise ValueError(f"n must be >= 1, got {n}")
     t = sample_temperature(model, prior, temperature)
-    if resolve_prior(model, prior) == "fitted":
-        return model.latent_prior.sample(n, seed=seed, temperature=t)
+    which = resolve_prior(model, prior)
+    if which != "normal":
+        return stored_prior(model, which).sample(n, seed=seed, temperature=t)
     return torch.randn(n, model.config.latent, generator=torch.Generator().manual_seed(seed)) * t
 
 
 def sample_temperature(model, prior: str = "auto", temperature: float | None = None) -> float:
     """The temperature ``prior_latents`` draws with: ``temperature``, or when ``None`` the one the
-    fitted prior stores (``LatentPriorConfig.temperature``), 1 for N(0, I)."""
+    stored prior keeps (``LatentPriorConfig.temperature``, ``NeighbourPriorConfig.temperature``), 1 for N(0, I)."""
     if temperature is not None:
         return float(temperature)
-    return model.latent_prior.config.temperature if resolve_prior(model, prior) == "fitted" else 1.0
+    which = resolve_prior(model, prior)
+    return stored_prior(model, which).config.temperature if which != "normal" else 1.0
 
 
 def lerp_latents(za: torch.Tensor, zb: torch.Tensor, steps: int) -> torch.Tensor:

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 PARTS = ("clean", "model")  # `vectorize --parts`: clean outlines (default) or the model's own paths
 EFFORTS = ("draft", "fast", "best")  # `vectorize --effort`: refine.EFFORTS holds the settings of each
 PRESETS = ("auto", "scan", "logo", "line", "pixel", "photo")  # `vectorize --preset`: the kinds of trace.read
-PRIORS = ("auto", "fitted", "normal")  # `sample --prior`: auto is the fitted prior when the model has one
+PRIORS = ("auto", "neighbours", "fitted", "normal")  # `sample --prior`: auto is the first of the others the model has
 GROUPINGS = ("evenodd", "nonzero", "layers")  # ModelConfig.grouping: how paths make shapes
 ARCHS = ("im2vec", "imagevae")  # ModelConfig.arch: the vector model, or the paper's raster baseline
 FITS = ("resize", "pad")  # ModelConfig.fit: how an image smaller than the model square meets it

@@ -51,8 +51,8 @@ from .events import (
 from .files import atomic_write
 from .model import build_model, flatten_rnns
 from .model.losses import reconstruction_loss
-from .model.pretrained import save_pretrained
-from .model.prior import IMAGES_PER_COMPONENT, fit_prior, posterior_means
+from .model.pretrained import save_pretrained, save_priors
+from .model.prior import IMAGES_PER_COMPONENT, MAX_ANCHORS, fit_neighbours, fit_prior, posterior_means
 from .optim import Lookahead
 from .outline_aux import Outlines, trace_targets
 from .runtime import setup_distributed
@@ -319,7 +319,8 @@ def _export(state: TrainState, train_x: torch.Tensor, data: str, run_dir: Path, 
     """``RUN/model``: the exported weights with their latent prior (``model.prior``, also kept
     beside ``checkpoint.pt`` for ``export``): a Gaussian mixture fitted to the posterior means of
     the training images, ``cfg.prior_components`` components or fewer for a small set (none for
-    fewer than ``PRIOR_MIN_IMAGES``)."""
+    fewer than ``PRIOR_MIN_IMAGES``), and the neighbour prior on the same latents
+    (``cfg.prior_neighbours``, fewer for a small set)."""
     model = state.exported
     if len(train_x) >= PRIOR_MIN_IMAGES:
         emit(PriorFitting(len(train_x)))
@@ -329,7 +330,9 @@ def _export(state: TrainState, train_x: torch.Tensor, data: str, run_dir: Path, 
         model.train(was)
         k = max(1, min(cfg.prior_components, len(train_x) // IMAGES_PER_COMPONENT))
         model.latent_prior = fit_prior(mu, k, seed=cfg.seed, data=data, step=state.step, shrink=cfg.prior_shrink)
-        model.latent_prior.save(run_dir)
+        near = min(cfg.prior_neighbours, min(len(mu), MAX_ANCHORS) - 1)
+        model.neighbour_prior = fit_neighbours(mu, near, seed=cfg.seed, data=data, step=state.step) if near else None
+        save_priors(model, run_dir)
     else:
         emit(NoPrior(len(train_x), PRIOR_MIN_IMAGES))
     save_pretrained(model, run_dir / "model")

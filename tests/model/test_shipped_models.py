@@ -69,3 +69,4 @@ def test_fitted_quality_on_test_split_subset(name):
     res = reconstruction_l2(from_pretrained(name), files, outlines=False, fit=True)
     assert res["recon_l2"] <= card["assets_subset_fitted_recon_l2"] * 1.1 + 1e-4, res
     assert res["recon_l2"] < 0.9 * card["assets_subset_recon_l2"], res
+

@@ -16,6 +16,7 @@ def markdown_table(res: dict, with_train: bool) -> str:
     rows = [("reconstruction L2 (Table 1)", "recon_l2", "images")]
     if with_train:
         rows += [("generation L2 (Table 2)", "generation_l2", "generated"),
+                 ("test images' L2 to the training set", "held_out_l2", "held_out"),
                  ("interpolation L2 (Table 2)", "interpolation_l2", "interpolants")]
     if "outline_iou" in res:
         rows += [("outline IoU at 4x", "outline_iou", "outlines"), ("Chamfer distance (px)", "chamfer_px", "outlines")]
@@ -84,20 +85,21 @@ def eval_cmd(data_dir, limit, train_dir, samples, pairs, segments, fit, output, 
 
     Reconstruction L2 (Table 1) on the test images, at each image's size; with --train-data,
     generation and interpolation L2 (Table 2): the MSE of decoded prior samples and of
-    interpolants between training pairs to their nearest training image, at the model size.
+    interpolants between training pairs to their nearest training image, at the model size,
+    beside the same figure of the test images (how far new real pictures lie from them).
     Where the test images have their true outline beside them (NAME.svg, as `im2vec data
     fonts` writes), also IoU at 4x and the Chamfer distance; always paths and segments per image.
     With --features, sample quality: improved precision and recall (k = 3) of --samples
     samples against as many test images, in the feature net's space, and for a classifier
-    the share of samples it labels with probability >= 0.9; for a model with a fitted prior,
-    also of samples from N(0, I), for comparison.
+    the share of samples it labels with probability >= 0.9; with --prior auto, also of samples
+    from the model's other priors and N(0, I), for comparison.
     An ImageVAE baseline (`train --arch imagevae`) is scored on its raster output, without
     the vector metrics.
     """
     import json
 
     from ..data.folder import load_folder, split_dir
-    from ..evaluate import eval_files, generation_l2, interpolation_l2, reconstruction_l2, sweep_plot
+    from ..evaluate import eval_files, generation_l2, held_out_l2, interpolation_l2, reconstruction_l2, sweep_plot
 
     if plot and not sweep:
         raise click.UsageError("--plot needs --sweep")
@@ -119,6 +121,7 @@ def eval_cmd(data_dir, limit, train_dir, samples, pairs, segments, fit, output, 
                                on_skip=skipped)
         res["train_images"] = len(train)
         res.update(generation_l2(model, train, samples=samples, seed=seed, segments=k, prior=prior))
+        res.update(held_out_l2(files, train, model.config.image_size, model.config.fit))
         res.update(interpolation_l2(model, train, pairs=pairs, seed=seed, segments=k))
     if ks:
         res.update(_sweeps(model, files, ks))

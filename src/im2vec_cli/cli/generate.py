@@ -18,11 +18,12 @@ from .streams import load_input_image, make_folder, write_output
               help="Output folder (- with --n 1: the SVG to stdout).")
 @click.option("--segments", default=None, help="Cubic segments per path (default: the model's).")
 @click.option("--temperature", type=Finite(0), default=None,
-              help="Scale of the prior's standard deviations (0: the fitted prior's component means; default: "
-                   "the one the fitted prior stores, 1 for N(0, I)).")
+              help="Spread of the draws: the standard deviations of fitted and normal (0: the fitted prior's "
+                   "component means), the step towards a neighbour (1: up to halfway; 0: the training latents "
+                   "themselves); default: the one the prior stores, 1 for N(0, I).")
 @click.option("--prior", type=click.Choice(PRIORS), default="auto", show_default=True,
-              help="fitted: the density fitted to the training set's latents that the model stores; normal: "
-                   "N(0, I); auto: fitted when the model has one.")
+              help="neighbours: between the latents of training pictures that look alike; fitted: the Gaussian "
+                   "mixture fitted to them; normal: N(0, I); auto: the first of these the model stores.")
 @click.option("--parts", type=click.Choice(PARTS), default="clean", show_default=True,
               help="clean: each shape as non-overlapping outer contours and holes; model: the model's own "
                    "(overlapping) paths.")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from ..config import DEFAULT_COMPONENTS, DEFAULT_SHRINK
+from ..config import DEFAULT_COMPONENTS, DEFAULT_NEIGHBOURS, DEFAULT_SHRINK
 from ..errors import ConfigError, Im2VecError
 from ..events import (
     AuxStep,
@@ -234,21 +234,26 @@ def export(run_dir, output, half, overwrite):
 @click.option("--shrink", type=click.FloatRange(0, 10), default=DEFAULT_SHRINK, show_default=True,
               help="Added to each Gaussian's variances, in units of the latents' mean variance: larger spreads each "
                    "over pictures like its own (see bench/prior_components.py).")
+@click.option("--neighbours", type=click.IntRange(0, 64), default=None,
+              help=f"Also keep the latents of (up to 4096 of) the images, each with this many nearest others, "
+                   f"for `sample --prior neighbours` (0: none) [default: {DEFAULT_NEIGHBOURS}, fewer for a small set].")
 @model_options
-def fit_prior_cmd(data_dir, output, overwrite, components, shrink, model_name, device, seed):
-    """Fit the latent density `sample` draws from to a trained model's training images.
+def fit_prior_cmd(data_dir, output, overwrite, components, shrink, neighbours, model_name, device, seed):
+    """Fit the latent densities `sample` draws from to a trained model's training images.
 
     Encodes DATA_DIR's images (DATA_DIR/train when it exists) and fits a full-covariance
-    Gaussian mixture to their posterior means; writes the model with latent_prior.safetensors
-    and latent_prior.json to -o. `train` does this when it finishes.
+    Gaussian mixture to their posterior means (latent_prior.safetensors and .json); with
+    --neighbours K it also keeps those latents, each with its K nearest
+    (latent_neighbours.safetensors and .json: `sample` then draws between neighbours).
+    Writes the model with them to -o. `train` fits the mixture when it finishes.
     """
     from .. import api
 
     model = load_model(model_name, device, seed, raster_ok=True)
     try:
         prior = api.fit_prior(data_dir, model, output, components=components, seed=seed, overwrite=overwrite,
-                              shrink=shrink, on_event=_say)
-    except ConfigError as exc:  # the one option checked against the data: --components
+                              shrink=shrink, neighbours=neighbours, on_event=_say)
+    except ConfigError as exc:  # the options checked against the data: --components, --neighbours
         raise click.UsageError(f"--{exc}") from None
     click.echo(f"mean log-likelihood {prior.config.log_likelihood:.1f} nats per image; "
                f"prior written to {output}", err=True)

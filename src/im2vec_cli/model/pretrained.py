@@ -17,7 +17,7 @@ from ..files import atomic_write, holds_files, replace_folder
 from ..options import GROWABLE
 from . import build_model
 from .encoder import Feedback
-from .prior import LatentPrior
+from .prior import NEIGHBOURS_CONFIG, NEIGHBOURS_WEIGHTS, LatentPrior, NeighbourPrior
 
 REPO_MODELS = Path(__file__).resolve().parents[3] / "models"
 PACKAGE_MODELS = Path(__file__).resolve().parents[1] / "models"
@@ -37,7 +37,7 @@ def unwrap_model(model: torch.nn.Module) -> torch.nn.Module:
 
 def save_pretrained(model: torch.nn.Module, directory: str | Path, *, half: bool = False) -> Path:
     """Write ``config.json`` and ``model.safetensors`` (fp16 storage with ``half``), and the
-    model's ``latent_prior`` (``prior.LatentPrior.save``) when it has one."""
+    model's ``latent_prior`` and ``neighbour_prior`` (``model.prior``) when it has them."""
     from safetensors.torch import save
 
     model = unwrap_model(model)
@@ -47,10 +47,23 @@ def save_pretrained(model: torch.nn.Module, directory: str | Path, *, half: bool
              for k, v in model.state_dict().items()}
     atomic_write(directory / "model.safetensors", save(state, metadata={"format": "pt"}))
     atomic_write(directory / "config.json", model.config.to_json())
-    prior = getattr(model, "latent_prior", None)
-    if prior is not None:
-        prior.save(directory)
+    save_priors(model, directory)
     return directory
+
+
+def save_priors(model: torch.nn.Module, directory: str | Path) -> None:
+    """Write the model's ``latent_prior`` and ``neighbour_prior`` (those it has) into ``directory``;
+    a stored neighbour prior the model lacks is removed there (it was fitted to other latents)."""
+    model, directory = unwrap_model(model), Path(directory)
+    if getattr(model, "latent_prior", None) is not None:
+        model.latent_prior.save(directory)
+    if getattr(model, "neighbour_prior", None) is not None:
+        model.neighbour_prior.save(directory)
+        return
+    for name in (NEIGHBOURS_WEIGHTS, NEIGHBOURS_CONFIG):
+        path = directory / name
+        if path.is_symlink() or path.is_file():  # the link or file only, never what a link points to
+            path.unlink()
 
 
 def resolve_model(name_or_dir: str | os.PathLike) -> Path:
@@ -116,9 +129,11 @@ def from_pretrained(name_or_dir: str | os.PathLike = DEFAULT_MODEL, device: str 
         raise ModelError(f"{weights}: weights do not match the config ({first})") from None
     model.name, model.folder = folder.name, folder
     model.latent_prior = LatentPrior.load(folder)  # None when the folder stores none
-    if model.latent_prior is not None and model.latent_prior.latent != cfg.latent:
-        raise ModelError(f"{folder}: latent prior is over {model.latent_prior.latent} dimensions, "
-                         f"the model's latent has {cfg.latent}")
+    model.neighbour_prior = NeighbourPrior.load(folder)
+    for prior in (model.latent_prior, model.neighbour_prior):
+        if prior is not None and prior.latent != cfg.latent:
+            raise ModelError(f"{folder}: latent prior is over {prior.latent} dimensions, "
+                             f"the model's latent has {cfg.latent}")
     return model.to(device).eval()
 
 
@@ -133,8 +148,8 @@ def stored_half(name_or_dir: str | os.PathLike) -> bool:
 def export_checkpoint(run_dir: str | Path, out_dir: str | Path, *, half: bool = False,
                       overwrite: bool = False) -> tuple[Path, int]:
     """Export the model of a run's ``checkpoint.pt`` as a ``from_pretrained`` folder, with the
-    run's latent prior when it was fitted to this checkpoint's weights (a run stopped early has
-    none: ``im2vec fit-prior`` fits one).
+    run's latent priors when they were fitted to this checkpoint's weights (a run stopped early has
+    none: ``im2vec fit-prior`` fits them).
 
     ``out_dir`` is made whole (``files.replace_folder``): a folder that holds files is replaced
     only with ``overwrite``, and never one that holds the run.
@@ -152,9 +167,9 @@ def export_checkpoint(run_dir: str | Path, out_dir: str | Path, *, half: bool = 
         model = averaged.module
     else:
         model.load_state_dict(state["model"], strict=True)
-    prior = LatentPrior.load(run_dir)  # fitted by `train` when it finished, to the weights of its last step
-    if prior is not None and prior.config.step == int(state["step"]):
-        model.latent_prior = prior
+    for name, prior in (("latent_prior", LatentPrior.load(run_dir)), ("neighbour_prior", NeighbourPrior.load(run_dir))):
+        if prior is not None and prior.config.step == int(state["step"]):  # fitted by `train` to these weights
+            setattr(model, name, prior)
     return replace_folder(out_dir, lambda tmp: save_pretrained(model, tmp, half=half)), int(state["step"])
 
 

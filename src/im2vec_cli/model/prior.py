@@ -27,12 +27,15 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..config import DEFAULT_COMPONENTS, DEFAULT_SHRINK, JsonConfig
+from ..config import DEFAULT_COMPONENTS, DEFAULT_NEIGHBOURS, DEFAULT_SHRINK, JsonConfig
 from ..errors import ModelError
 from ..files import atomic_write
 
 PRIOR_WEIGHTS = "latent_prior.safetensors"
 PRIOR_CONFIG = "latent_prior.json"
+NEIGHBOURS_WEIGHTS = "latent_neighbours.safetensors"
+NEIGHBOURS_CONFIG = "latent_neighbours.json"
+MAX_ANCHORS = 4096  # training latents a neighbour prior keeps (seeded subset): 1 MB in fp16 at D = 128
 IMAGES_PER_COMPONENT = 30  # a mixture fitted at the end of training has at most N / this components
 # (emoji: 100 components of 3,126 latents, shrunk by 0.05, score best on the validation split)
 
@@ -163,3 +166,114 @@ def posterior_means(model: torch.nn.Module, images: torch.Tensor, batch: int = 2
         x = x.float() / 255 if x.dtype == torch.uint8 else x.float()
         out.append(model.encode(x.to(dev))[0].float().cpu())
     return torch.cat(out)
+
+
+@dataclass(frozen=True)
+class NeighbourPriorConfig(JsonConfig):
+    """What a stored neighbour prior is: its anchors, their neighbours, how it was made."""
+
+    anchors: int = 0  # training latents kept (all, or a seeded subset of MAX_ANCHORS)
+    latent: int = 128
+    neighbours: int = DEFAULT_NEIGHBOURS  # k: each anchor's nearest anchors a draw may step towards
+    images: int = 0  # training images encoded
+    data: str = ""
+    seed: int = 0
+    step: int = -1  # the training step of the weights it was fitted to (-1: not from a run)
+    temperature: float = 1.0  # what ``sample`` draws with unless told
+
+    def __post_init__(self):
+        if not 0 <= self.temperature <= 4:  # also refuses NaN
+            raise ValueError(f"temperature must be in [0, 4], got {self.temperature}")
+
+
+class NeighbourPrior:
+    """Latents between training pictures that look alike: ``anchors (N, D)``, the posterior
+    means of (a subset of) the training images, and ``neighbours (N, k)``, each anchor's k
+    nearest other anchors (Euclidean, in the latent space).
+
+    A draw picks an anchor ``a`` and one of its neighbours ``b`` uniformly and returns
+    ``a + u (b - a)``, ``u`` uniform in ``[0, temperature / 2]``: at temperature 1 anywhere from
+    the anchor to the midpoint (so, over both ends, the whole segment), at 0 the training
+    latents themselves. A Gaussian mixture's draws (``LatentPrior``) fall between the thin sheets
+    the training latents lie on, where the decoder draws blobs; these stay on segments between
+    neighbours, where it draws what its training pictures look like (mixtures of two close
+    ones: their nearest-training-picture distance is reported beside the precision)."""
+
+    def __init__(self, anchors: torch.Tensor, neighbours: torch.Tensor, config: NeighbourPriorConfig | None = None):
+        n, d = anchors.shape
+        if neighbours.dim() != 2 or len(neighbours) != n or neighbours.shape[1] < 1:
+            raise ValueError(f"neighbours must be (N, k >= 1) with N = {n}, got {tuple(neighbours.shape)}")
+        if neighbours.min() < 0 or neighbours.max() >= n:
+            raise ValueError(f"neighbour indices must be in [0, {n})")
+        self.anchors, self.neighbours = anchors.float(), neighbours.long()
+        self.config = config or NeighbourPriorConfig(anchors=n, latent=d, neighbours=neighbours.shape[1])
+
+    @property
+    def latent(self) -> int:
+        return self.anchors.shape[1]
+
+    def sample(self, n: int, *, seed: int = 0, temperature: float | None = None) -> torch.Tensor:
+        """``n`` latents ``(n, D)`` float32, the same for the same ``seed`` (its own generator)."""
+        temperature = self.config.temperature if temperature is None else temperature
+        g = torch.Generator().manual_seed(seed)
+        a = torch.randint(len(self.anchors), (n,), generator=g)
+        b = self.neighbours[a, torch.randint(self.neighbours.shape[1], (n,), generator=g)]
+        u = torch.rand(n, 1, generator=g) * (temperature / 2)
+        return self.anchors[a] + u * (self.anchors[b] - self.anchors[a])
+
+    def save(self, folder: str | Path) -> Path:
+        """Write ``latent_neighbours.safetensors`` (anchors fp16) and ``.json`` into ``folder`` (atomically)."""
+        from safetensors.torch import save
+
+        folder = Path(folder)
+        tensors = {"anchors": self.anchors.half(), "neighbours": self.neighbours.int()}
+        atomic_write(folder / NEIGHBOURS_WEIGHTS, save({k: v.contiguous() for k, v in tensors.items()},
+                                                       metadata={"format": "pt"}))
+        atomic_write(folder / NEIGHBOURS_CONFIG, self.config.to_json())
+        return folder / NEIGHBOURS_WEIGHTS
+
+    @classmethod
+    def load(cls, folder: str | Path) -> NeighbourPrior | None:
+        """The neighbour prior stored in a model folder, or ``None``; ``ModelError`` when unreadable."""
+        from safetensors import SafetensorError
+        from safetensors.torch import load_file
+
+        path = Path(folder) / NEIGHBOURS_WEIGHTS
+        if not path.is_file():
+            return None
+        try:
+            cfg = NeighbourPriorConfig.load(Path(folder) / NEIGHBOURS_CONFIG)
+            t = load_file(str(path))
+            prior = cls(t["anchors"], t["neighbours"], cfg)
+        except (SafetensorError, OSError, ValueError, KeyError, json.JSONDecodeError) as exc:
+            raise ModelError(f"{path}: unreadable neighbour prior ({str(exc).splitlines()[0]})") from None
+        if not torch.isfinite(prior.anchors).all():
+            raise ModelError(f"{path}: neighbour prior contains NaN or infinite values")
+        return prior
+
+
+def anchor_rows(n: int, seed: int = 0, max_anchors: int = MAX_ANCHORS) -> torch.Tensor:
+    """The rows of ``n`` latents a neighbour prior keeps: a seeded subset of ``max_anchors``
+    (all when fewer), in order."""
+    return torch.randperm(n, generator=torch.Generator().manual_seed(seed))[:max_anchors].sort().values
+
+
+def fit_neighbours(latents: torch.Tensor, neighbours: int = DEFAULT_NEIGHBOURS, *, seed: int = 0, data: str = "",
+                   step: int = -1, max_anchors: int = MAX_ANCHORS, images: int | None = None) -> NeighbourPrior:
+    """A ``NeighbourPrior`` on latents ``(N, D)``: the rows ``anchor_rows`` keeps, each with its
+    ``neighbours`` nearest others among them. ``images``: the latents are already those rows of
+    this many images (encoding only them gives the same prior)."""
+    if latents.dim() != 2:
+        raise ValueError(f"latents must be (N, D), got {tuple(latents.shape)}")
+    n, d = latents.shape
+    if not 1 <= neighbours < min(n, max_anchors):
+        raise ValueError(f"neighbours must be in [1, {min(n, max_anchors) - 1}], got {neighbours}")
+    if images is not None and n != len(anchor_rows(images, seed, max_anchors)):
+        raise ValueError(f"{n} latents are not the anchors of {images} images")
+    anchors = latents[anchor_rows(n, seed, max_anchors)].half().float()  # as stored: draws are the same after saving
+    dist = torch.cdist(anchors, anchors)  # (N', N'): 64 MB at N' = 4096
+    dist.fill_diagonal_(float("inf"))
+    near = dist.topk(neighbours, largest=False).indices  # (N', k)
+    cfg = NeighbourPriorConfig(anchors=len(anchors), latent=d, neighbours=neighbours, images=images or n, data=data,
+                               seed=seed, step=step)
+    return NeighbourPrior(anchors, near, cfg)
