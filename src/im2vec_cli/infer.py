@@ -184,7 +184,8 @@ def resolve_prior(model, prior: str = "auto") -> str:
         return next((p for p in STORED_PRIORS if stored_prior(model, p) is not None), "normal")
     if prior != "normal" and stored_prior(model, prior) is None:
         how = "`im2vec fit-prior --neighbours K`" if prior == "neighbours" else "`im2vec fit-prior`"
-        raise ModelError(f"model {getattr(model, 'name', '?')!r} has no {prior} latent prior "
+        what = "neighbour prior" if prior == "neighbours" else "fitted latent prior"
+        raise ModelError(f"model {getattr(model, 'name', '?')!r} has no {what} "
                          f"(add one with {how}, or use prior='normal')")
     return prior
 

@@ -90,7 +90,7 @@ def test_sample_prefers_the_neighbours_and_each_prior_can_be_asked_for(two_prior
     assert np.array_equal(z, m.neighbour_prior.sample(300, seed=4).numpy())
     assert np.array_equal(z, iv.prior_latents(300, m, seed=4, prior="neighbours"))
     assert float(z.mean()) < -1 and float(iv.prior_latents(300, m, seed=4, prior="fitted").mean()) > 1
-    with pytest.raises(ModelError, match="no neighbours latent prior"):
+    with pytest.raises(ModelError, match="no neighbour prior"):
         iv.prior_latents(3, iv.load_model(str(bare), "cpu"), prior="neighbours")
     out = tmp_path / "s"
     assert run(["sample", "--n", "2", "--seed", "3", "--model", str(both), "-o", str(out)]).exit_code == 0

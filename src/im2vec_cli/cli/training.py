@@ -245,7 +245,7 @@ def fit_prior_cmd(data_dir, output, overwrite, components, shrink, neighbours, m
     Gaussian mixture to their posterior means (latent_prior.safetensors and .json); with
     --neighbours K it also keeps those latents, each with its K nearest
     (latent_neighbours.safetensors and .json: `sample` then draws between neighbours).
-    Writes the model with them to -o. `train` fits the mixture when it finishes.
+    Writes the model with them to -o. `train` fits both when it finishes.
     """
     from .. import api
 

@@ -16,6 +16,14 @@ T = 0: the component means), as it scales N(0, I) for ``prior="normal"``. A prio
 temperature ``sample`` uses by default (``LatentPriorConfig.temperature``: 1 as fitted; a lower
 one chosen on the validation split by ``bench/prior_temperature.py`` trades recall for precision,
 the truncation of Brock et al. 2019).
+
+The training latents lie on thin sheets, and a mixture's draws fall between them, where the
+decoder draws blobs. ``NeighbourPrior`` (what ``sample`` prefers) keeps training latents and
+draws on the segments between near neighbours among them:
+
+    latent_neighbours.safetensors   anchors (N, D) float16 (up to MAX_ANCHORS training latents),
+                                    neighbours (N, k) int32 (each anchor's k nearest others)
+    latent_neighbours.json          NeighbourPriorConfig: k, the images and seed they came from
 """
 
 from __future__ import annotations
@@ -96,14 +104,8 @@ class LatentPrior:
 
     def save(self, folder: str | Path) -> Path:
         """Write ``latent_prior.safetensors`` and ``latent_prior.json`` into ``folder`` (atomically)."""
-        from safetensors.torch import save
-
-        folder = Path(folder)
         tensors = {"weights": self.weights.float(), "means": self.means, "scale_tril": self.scale_tril}
-        atomic_write(folder / PRIOR_WEIGHTS, save({k: v.contiguous() for k, v in tensors.items()},
-                                                  metadata={"format": "pt"}))
-        atomic_write(folder / PRIOR_CONFIG, self.config.to_json())
-        return folder / PRIOR_WEIGHTS
+        return _save(Path(folder), PRIOR_WEIGHTS, tensors, PRIOR_CONFIG, self.config)
 
     @classmethod
     def load(cls, folder: str | Path) -> LatentPrior | None:
@@ -127,6 +129,15 @@ class LatentPrior:
         if (prior.scale_tril.diagonal(dim1=1, dim2=2) <= 0).any():
             raise ModelError(f"{path}: latent prior covariance factors are not positive definite")
         return prior
+
+
+def _save(folder: Path, weights: str, tensors: dict[str, torch.Tensor], config: str, cfg: JsonConfig) -> Path:
+    """``folder/weights`` (safetensors) and ``folder/config`` (JSON), each written atomically."""
+    from safetensors.torch import save
+
+    atomic_write(folder / weights, save({k: v.contiguous() for k, v in tensors.items()}, metadata={"format": "pt"}))
+    atomic_write(folder / config, cfg.to_json())
+    return folder / weights
 
 
 def fit_prior(latents: torch.Tensor, components: int = DEFAULT_COMPONENTS, *, seed: int = 0, data: str = "",
@@ -223,14 +234,8 @@ class NeighbourPrior:
 
     def save(self, folder: str | Path) -> Path:
         """Write ``latent_neighbours.safetensors`` (anchors fp16) and ``.json`` into ``folder`` (atomically)."""
-        from safetensors.torch import save
-
-        folder = Path(folder)
         tensors = {"anchors": self.anchors.half(), "neighbours": self.neighbours.int()}
-        atomic_write(folder / NEIGHBOURS_WEIGHTS, save({k: v.contiguous() for k, v in tensors.items()},
-                                                       metadata={"format": "pt"}))
-        atomic_write(folder / NEIGHBOURS_CONFIG, self.config.to_json())
-        return folder / NEIGHBOURS_WEIGHTS
+        return _save(Path(folder), NEIGHBOURS_WEIGHTS, tensors, NEIGHBOURS_CONFIG, self.config)
 
     @classmethod
     def load(cls, folder: str | Path) -> NeighbourPrior | None:
