@@ -78,7 +78,7 @@ def main() -> None:
             panels = [(f"{name}: im2vec sample --prior fitted (the Gaussian mixture)",
                        sample_sheet(name, "fitted", args.seed, Path(tmp)))]
             if (REPO_MODELS / name / NEIGHBOURS_CONFIG).is_file():
-                panels.append((f"{name}: im2vec sample (the default: the neighbour prior)",
+                panels.append((f"{name}: im2vec sample (by default, the neighbour prior)",
                                sample_sheet(name, "neighbours", args.seed, Path(tmp))))
             panels.append((f"{name}: random test images ({where})", real))
             labelled(panels).save(args.out / f"{name}.png")
