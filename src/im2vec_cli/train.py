@@ -316,17 +316,14 @@ def _auxiliary_targets(state: TrainState, run_dir: Path, train_x: torch.Tensor, 
 
 def _export(state: TrainState, train_x: torch.Tensor, data: str, run_dir: Path, cfg: TrainConfig,
             emit: Callable[[Event], None]) -> None:
-    """``RUN/model``: the exported weights with their latent prior (``model.prior``, also kept
-    beside ``checkpoint.pt`` for ``export``): a Gaussian mixture fitted to the posterior means of
-    the training images, ``cfg.prior_components`` components or fewer for a small set (none for
-    fewer than ``PRIOR_MIN_IMAGES``), and the neighbour prior on the same latents
-    (``cfg.prior_neighbours``, fewer for a small set)."""
+    """``RUN/model``: the exported weights with their latent priors (``model.prior``, also kept
+    beside ``checkpoint.pt`` for ``export``), fitted to the posterior means of the training images
+    (none for fewer than ``PRIOR_MIN_IMAGES``): a Gaussian mixture of ``cfg.prior_components``
+    components and the neighbour prior of ``cfg.prior_neighbours``, each fewer for a small set."""
     model = state.exported
     if len(train_x) >= PRIOR_MIN_IMAGES:
         emit(PriorFitting(len(train_x)))
-        was = model.training
-        model.eval()
-        mu = posterior_means(model, train_x)  # (N, D)
+        was, mu = model.training, posterior_means(model.eval(), train_x)  # (N, D)
         model.train(was)
         k = max(1, min(cfg.prior_components, len(train_x) // IMAGES_PER_COMPONENT))
         model.latent_prior = fit_prior(mu, k, seed=cfg.seed, data=data, step=state.step, shrink=cfg.prior_shrink)
