@@ -75,6 +75,7 @@ def test_shipping_names_the_commit_it_is_given_and_replaces_only_the_model_files
     (shipped / "segments.json").write_text("{}")
     (shipped / "config.json").write_text('{"feedback": 1}')
     (scratch / "config.json").write_text('{"feedback": 2}')
+    (shipped / "latent_neighbours.json").write_text("{}")  # fitted to the replaced weights: never carried over
     (shipped / "metrics.json").write_text(json.dumps({"step": 100, "test_images": 10, "test_recon_l2": 0.02,
                                                       "training": {"steps": 100, "wall": "5 min"}}))
     figures = {"test_recon_l2": 0.02, "test_recon_l2_stderr": 0.001, "assets_recon_l2": 0.02,
@@ -86,6 +87,7 @@ def test_shipping_names_the_commit_it_is_given_and_replaces_only_the_model_files
     card = (shipped / "README.md").read_text()
     assert "## Phase 1 (" in card and "code at fdc60e9)" in card
     assert (shipped / "config.json").read_text() == '{"feedback": 2}' and (shipped / "segments.json").is_file()
+    assert not (shipped / "latent_neighbours.json").exists()
 
 
 def test_a_phase_from_a_lent_gpu_names_it_in_the_cards_training_summary():
