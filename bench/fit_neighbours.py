@@ -30,7 +30,7 @@ from im2vec_cli.data.folder import load_folder, split_dir  # noqa: E402
 from im2vec_cli.evaluate import eval_files, sample_quality  # noqa: E402
 from im2vec_cli.files import load_image  # noqa: E402
 from im2vec_cli.model.pretrained import from_pretrained  # noqa: E402
-from im2vec_cli.model.prior import anchor_rows, fit_neighbours, posterior_means  # noqa: E402
+from im2vec_cli.model.prior import PRIOR_CONFIG, anchor_rows, fit_neighbours, posterior_means  # noqa: E402
 
 
 def f1(q: dict) -> float:
@@ -58,7 +58,7 @@ def main():
     args = ap.parse_args()
     folder, data = Path(args.model), Path(args.data)
     model = from_pretrained(folder)
-    seed = json.loads((folder / "latent_prior.json").read_text())["seed"] if (folder / "latent_prior.json").is_file() else 0
+    seed = json.loads((folder / PRIOR_CONFIG).read_text())["seed"] if (folder / PRIOR_CONFIG).is_file() else 0
     t0 = time.perf_counter()
     train, _ = load_folder(split_dir(data, "train"), model.config.image_size, fit=model.config.fit)
     rows = anchor_rows(len(train), seed)

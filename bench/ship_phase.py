@@ -47,9 +47,10 @@ from im2vec_cli.config import DEFAULT_NEIGHBOURS, MAX_FEEDBACK  # noqa: E402
 from im2vec_cli.evaluate import eval_files, reconstruction_l2  # noqa: E402
 from im2vec_cli.files import atomic_write, replace_folder  # noqa: E402
 from im2vec_cli.model.pretrained import export_checkpoint, from_pretrained, stored_half  # noqa: E402
+from im2vec_cli.model.prior import NEIGHBOURS_CONFIG, NEIGHBOURS_WEIGHTS, PRIOR_CONFIG, PRIOR_WEIGHTS  # noqa: E402
 
-MODEL_FILES = ("config.json", "model.safetensors", "latent_prior.json", "latent_prior.safetensors",
-               "latent_neighbours.json", "latent_neighbours.safetensors")  # a phase's own: never kept from the shipped
+MODEL_FILES = ("config.json", "model.safetensors", PRIOR_CONFIG, PRIOR_WEIGHTS,
+               NEIGHBOURS_CONFIG, NEIGHBOURS_WEIGHTS)  # a phase's own: never kept from the shipped
 CURVE_ROWS = 12  # validation rows of the card's curve (evenly spread, the last one always)
 
 
@@ -83,7 +84,7 @@ def main():
         step = exported["step"]
     elif run:
         _, step = export_checkpoint(run, scratch, half=stored_half(shipped))
-        near = shipped / "latent_neighbours.json"
+        near = shipped / NEIGHBOURS_CONFIG
         if near.is_file() and not (scratch / near.name).is_file():  # the run stopped before it fitted one
             from im2vec_cli.api import fit_neighbours
 
@@ -129,7 +130,7 @@ def with_passes(shipped: Path, scratch: Path, passes: int, data: Path, select: b
     shutil.copytree(shipped, scratch)
     atomic_write(scratch / "config.json", dataclasses.replace(config, feedback=passes, feedback_select=select).to_json())
     prior = json.loads((shipped / "latent_prior.json").read_text())
-    near = shipped / "latent_neighbours.json"
+    near = shipped / NEIGHBOURS_CONFIG
     k = json.loads(near.read_text())["neighbours"] if near.is_file() else DEFAULT_NEIGHBOURS
     fit_prior(data, str(scratch), str(scratch), components=prior["components"], seed=prior["seed"],
               shrink=prior.get("shrink", 1e-4), neighbours=k, overwrite=True)

@@ -65,29 +65,20 @@ def fit_prior(data_dir, model, output, *, components: int = DEFAULT_COMPONENTS, 
     and, unless ``neighbours`` is 0, the neighbour prior (``model.prior.fit_neighbours``; ``None``:
     ``DEFAULT_NEIGHBOURS``, fewer for a small set; 0 drops a stored one, fitted to other weights).
     Returns the ``LatentPrior``."""
-    from .files import replace_folder
-    from .model.pretrained import save_pretrained, save_priors, stored_half
-    from .model.prior import MAX_ANCHORS, fit_neighbours, posterior_means
+    from .model.prior import fit_neighbours, posterior_means
     from .model.prior import fit_prior as fit
 
     emit = on_event or (lambda e: None)
     source, model, in_place, data = model_and_images(model, output, overwrite, data_dir, emit)
     if components > max(1, len(data) // 2):
         raise ConfigError(f"components {components}: at most half the {len(data)} images")
-    if neighbours is None:
-        neighbours = min(DEFAULT_NEIGHBOURS, min(len(data), MAX_ANCHORS) - 1)
-    elif neighbours and not neighbours < min(len(data), MAX_ANCHORS):
-        raise ConfigError(f"neighbours {neighbours}: fewer than the {min(len(data), MAX_ANCHORS)} images it chooses from")
+    neighbours = _neighbours(neighbours, len(data), fewest=0)
     emit(Encoding(len(data)))
     mu = posterior_means(model, data)
     prior = fit(mu, components, seed=seed, data=str(data_dir), shrink=shrink)
     near = fit_neighbours(mu, neighbours, seed=seed, data=str(data_dir)) if neighbours else None
     model.latent_prior, model.neighbour_prior = prior, near
-    if in_place:
-        save_priors(model, output)
-    else:
-        half = source is not None and stored_half(source)  # weights stay as stored
-        replace_folder(output, lambda folder: save_pretrained(model, folder, half=half))
+    _write_priors(model, source, output, in_place)
     return prior
 
 
@@ -98,25 +89,44 @@ def fit_neighbours(data_dir, model, output, *, neighbours: int | None = None, se
     It encodes only the images the prior keeps (``model.prior.anchor_rows``): the prior ``fit_prior``
     fits with the same ``seed``, in seconds where the mixture's every image takes minutes.
     Returns the ``NeighbourPrior``."""
-    from .files import replace_folder
-    from .model.pretrained import save_pretrained, save_priors, stored_half
-    from .model.prior import MAX_ANCHORS, anchor_rows, posterior_means
+    from .model.prior import anchor_rows, posterior_means
     from .model.prior import fit_neighbours as fit
 
     emit = on_event or (lambda e: None)
     source, model, in_place, data = model_and_images(model, output, overwrite, data_dir, emit)
-    k = min(DEFAULT_NEIGHBOURS, min(len(data), MAX_ANCHORS) - 1) if neighbours is None else neighbours
-    if not 1 <= k < min(len(data), MAX_ANCHORS):
-        raise ConfigError(f"neighbours {k}: at least 1 and fewer than the {min(len(data), MAX_ANCHORS)} images it chooses from")
+    k = _neighbours(neighbours, len(data), fewest=1)
     rows = anchor_rows(len(data), seed)
     emit(Encoding(len(rows)))
     model.neighbour_prior = fit(posterior_means(model, data[rows]), k, seed=seed, data=str(data_dir), images=len(data))
+    _write_priors(model, source, output, in_place)
+    return model.neighbour_prior
+
+
+def _neighbours(asked: int | None, images: int, fewest: int) -> int:
+    """k for a neighbour prior of ``images`` images, checked before the work: ``asked``, from
+    ``fewest`` (0: none) to ``model.prior.most_neighbours``, or for ``None`` the default, fewer
+    for a small set."""
+    from .model.prior import most_neighbours
+
+    most = most_neighbours(images)
+    if asked is None:
+        return min(DEFAULT_NEIGHBOURS, most)
+    if not (fewest <= asked and (asked == 0 or asked <= most)):
+        raise ConfigError(f"neighbours {asked}: {'at least 1 and ' if fewest else ''}fewer than the "
+                          f"{most + 1} images it chooses from")
+    return asked
+
+
+def _write_priors(model, source, output, in_place: bool) -> None:
+    """Only the priors into the model's own folder, else the whole model (weights as stored) to ``output``."""
+    from .files import replace_folder
+    from .model.pretrained import save_pretrained, save_priors, stored_half
+
     if in_place:
         save_priors(model, output)
     else:
-        half = source is not None and stored_half(source)
+        half = source is not None and stored_half(source)  # the weights stay bit-identical
         replace_folder(output, lambda folder: save_pretrained(model, folder, half=half))
-    return model.neighbour_prior
 
 
 def train_aux(data_dir, model, output, *, images: int = 2048, steps: int = 3000, seed: int = 0,

@@ -52,7 +52,7 @@ from .files import atomic_write
 from .model import build_model, flatten_rnns
 from .model.losses import reconstruction_loss
 from .model.pretrained import save_pretrained, save_priors
-from .model.prior import IMAGES_PER_COMPONENT, MAX_ANCHORS, fit_neighbours, fit_prior, posterior_means
+from .model.prior import IMAGES_PER_COMPONENT, fit_neighbours, fit_prior, most_neighbours, posterior_means
 from .optim import Lookahead
 from .outline_aux import Outlines, trace_targets
 from .runtime import setup_distributed
@@ -327,7 +327,7 @@ def _export(state: TrainState, train_x: torch.Tensor, data: str, run_dir: Path, 
         model.train(was)
         k = max(1, min(cfg.prior_components, len(train_x) // IMAGES_PER_COMPONENT))
         model.latent_prior = fit_prior(mu, k, seed=cfg.seed, data=data, step=state.step, shrink=cfg.prior_shrink)
-        near = min(cfg.prior_neighbours, min(len(mu), MAX_ANCHORS) - 1)
+        near = min(cfg.prior_neighbours, most_neighbours(len(mu)))
         model.neighbour_prior = fit_neighbours(mu, near, seed=cfg.seed, data=data, step=state.step) if near else None
         save_priors(model, run_dir)
     else:

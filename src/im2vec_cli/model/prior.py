@@ -111,19 +111,11 @@ class LatentPrior:
     def load(cls, folder: str | Path) -> LatentPrior | None:
         """The prior stored in a model folder, or ``None`` when it has none; ``ModelError``
         when it is there but unreadable or does not fit."""
-        from safetensors import SafetensorError
-        from safetensors.torch import load_file
-
-        folder = Path(folder)
-        path = folder / PRIOR_WEIGHTS
-        if not path.is_file():
+        path = Path(folder) / PRIOR_WEIGHTS
+        prior = _load(Path(folder), PRIOR_WEIGHTS, PRIOR_CONFIG, LatentPriorConfig, "latent prior",
+                      lambda t, cfg: cls(t["weights"], t["means"], t["scale_tril"], cfg))
+        if prior is None:
             return None
-        try:
-            cfg = LatentPriorConfig.load(folder / PRIOR_CONFIG)
-            t = load_file(str(path))
-            prior = cls(t["weights"], t["means"], t["scale_tril"], cfg)
-        except (SafetensorError, OSError, ValueError, KeyError, json.JSONDecodeError) as exc:
-            raise ModelError(f"{path}: unreadable latent prior ({str(exc).splitlines()[0]})") from None
         if not all(torch.isfinite(v).all() for v in (prior.weights, prior.means, prior.scale_tril)):
             raise ModelError(f"{path}: latent prior contains NaN or infinite values")
         if (prior.scale_tril.diagonal(dim1=1, dim2=2) <= 0).any():
@@ -138,6 +130,22 @@ def _save(folder: Path, weights: str, tensors: dict[str, torch.Tensor], config: 
     atomic_write(folder / weights, save({k: v.contiguous() for k, v in tensors.items()}, metadata={"format": "pt"}))
     atomic_write(folder / config, cfg.to_json())
     return folder / weights
+
+
+def _load(folder: Path, weights: str, config: str, cfg_cls: type[JsonConfig], what: str, build):
+    """``build(tensors, config)`` from ``folder/weights`` and ``folder/config``, or ``None`` when the
+    folder has no ``weights``; ``ModelError`` naming ``what`` when either is unreadable."""
+    from safetensors import SafetensorError
+    from safetensors.torch import load_file
+
+    path = folder / weights
+    if not path.is_file():
+        return None
+    try:
+        cfg = cfg_cls.load(folder / config)
+        return build(load_file(str(path)), cfg)
+    except (SafetensorError, OSError, ValueError, KeyError, json.JSONDecodeError) as exc:
+        raise ModelError(f"{path}: unreadable {what} ({str(exc).splitlines()[0]})") from None
 
 
 def fit_prior(latents: torch.Tensor, components: int = DEFAULT_COMPONENTS, *, seed: int = 0, data: str = "",
@@ -240,21 +248,19 @@ class NeighbourPrior:
     @classmethod
     def load(cls, folder: str | Path) -> NeighbourPrior | None:
         """The neighbour prior stored in a model folder, or ``None``; ``ModelError`` when unreadable."""
-        from safetensors import SafetensorError
-        from safetensors.torch import load_file
-
         path = Path(folder) / NEIGHBOURS_WEIGHTS
-        if not path.is_file():
+        prior = _load(Path(folder), NEIGHBOURS_WEIGHTS, NEIGHBOURS_CONFIG, NeighbourPriorConfig, "neighbour prior",
+                      lambda t, cfg: cls(t["anchors"], t["neighbours"], cfg))
+        if prior is None:
             return None
-        try:
-            cfg = NeighbourPriorConfig.load(Path(folder) / NEIGHBOURS_CONFIG)
-            t = load_file(str(path))
-            prior = cls(t["anchors"], t["neighbours"], cfg)
-        except (SafetensorError, OSError, ValueError, KeyError, json.JSONDecodeError) as exc:
-            raise ModelError(f"{path}: unreadable neighbour prior ({str(exc).splitlines()[0]})") from None
         if not torch.isfinite(prior.anchors).all():
             raise ModelError(f"{path}: neighbour prior contains NaN or infinite values")
         return prior
+
+
+def most_neighbours(images: int) -> int:
+    """The largest k a neighbour prior of ``images`` training images can have: one fewer than the anchors it keeps."""
+    return min(images, MAX_ANCHORS) - 1
 
 
 def anchor_rows(n: int, seed: int = 0, max_anchors: int = MAX_ANCHORS) -> torch.Tensor:
@@ -273,7 +279,7 @@ def fit_neighbours(latents: torch.Tensor, neighbours: int = DEFAULT_NEIGHBOURS, 
     n, d = latents.shape
     if not 1 <= neighbours < min(n, max_anchors):
         raise ValueError(f"neighbours must be in [1, {min(n, max_anchors) - 1}], got {neighbours}")
-    if images is not None and n != len(anchor_rows(images, seed, max_anchors)):
+    if images is not None and n != min(images, max_anchors):  # anchor_rows keeps that many
         raise ValueError(f"{n} latents are not the anchors of {images} images")
     anchors = latents[anchor_rows(n, seed, max_anchors)].half().float()  # as stored: draws are the same after saving
     dist = torch.cdist(anchors, anchors)  # (N', N'): 64 MB at N' = 4096
