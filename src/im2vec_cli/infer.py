@@ -87,11 +87,12 @@ DEFAULT_QUALITY = 5e-4  # --segments auto: error per added segment (MSE on cover
 
 
 def segment_counts(model: Im2Vec, z: torch.Tensor, segments: int | str | None,
-                   quality: float | None = None) -> int | torch.Tensor | None:
+                   quality: float | None = None, images: torch.Tensor | None = None) -> int | torch.Tensor | None:
     """``segments`` as ``Im2Vec.decode`` takes it: ``"auto"`` becomes per-path counts ``(B, P)``
-    chosen by the model's segment predictor at ``quality`` (default ``DEFAULT_QUALITY``)."""
+    chosen by the model's segment predictor at ``quality`` (default ``DEFAULT_QUALITY``) for
+    the paths ``decode(z, ..., images)`` draws."""
     if segments == "auto":
-        return model.choose_segments(z, quality or DEFAULT_QUALITY)
+        return model.choose_segments(z, quality or DEFAULT_QUALITY, images)
     return segments
 
 
@@ -114,8 +115,9 @@ def vectorize(model: Im2Vec, images: list[torch.Tensor], *, segments: int | str 
     todo = [i for i, v in enumerate(out) if v is None]
     if todo:
         xs, places = zip(*(model_input(model, images[i]) for i in todo))
-        mu, _ = model.encode(torch.stack(xs).to(dev))
-        dec = model.decode(mu, segment_counts(model, mu, segments, quality))
+        x = torch.stack(xs).to(dev)
+        mu, _ = model.encode(x)
+        dec = model.decode(mu, segment_counts(model, mu, segments, quality, x), x)
         for j, (i, p) in enumerate(zip(todo, places)):
             vec = resolve_overlaps(to_vector(dec, j, p, max_paths=max_paths), images[i])
             out[i] = clean_guess(vec, p, model.config.image_size) if clean else vec

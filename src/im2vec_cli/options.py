@@ -19,7 +19,8 @@ GROUPINGS = ("evenodd", "nonzero", "layers")  # ModelConfig.grouping: how paths 
 ARCHS = ("im2vec", "imagevae")  # ModelConfig.arch: the vector model, or the paper's raster baseline
 FITS = ("resize", "pad")  # ModelConfig.fit: how an image smaller than the model square meets it
 AUGMENTS = ("flip", "scale", "shift")  # TrainConfig.augment: the kinds it may name, comma-separated (data.augment)
-GROWABLE = ("paths", "grouping", "palette", "feedback", "feedback_paths", "feedback_select")  # ModelConfig keys a fine-tune (`train --init`) may change
+GROWABLE = ("paths", "grouping", "palette", "feedback", "feedback_paths", "feedback_select", "path_passes",
+            "path_pass_width")  # ModelConfig keys a fine-tune (`train --init`) may change
 
 
 def parse_augment(spec: str) -> tuple[str, ...]:

@@ -57,6 +57,38 @@ class Feedback(nn.Module):
         return z + self.step(torch.cat([h, z], -1))
 
 
+class PathPass(nn.Module):
+    """One render-and-compare pass on each path: the picture, the render of the current paths,
+    their difference and this path's own coverage ``(B*P, 3C+1, S, S)``, through a conv stack
+    like the encoder's (shared by the paths), then a small MLP from those features, the path's
+    code and its colour to a correction of both ``(B, P, code + 3)`` (the colour's in logit space).
+
+    The latent passes (``Feedback``) correct one ``z`` through the LSTM; this one corrects each
+    path's code directly, the space that per-picture fits reach furthest in from the same start
+    (docs/results/fonts-ablation.md). The MLP's last layer starts at zero, so a model given a
+    path pass (``ModelConfig.path_passes``, grown by ``train --init``) draws what it drew before.
+    """
+
+    def __init__(self, image_size: int, channels: int, code: int, width: int, hidden: int = 256):
+        super().__init__()
+        self.net, features = conv_stack(image_size, 3 * channels + 1, width)
+        self.step = nn.Sequential(nn.Linear(features + code + 3, hidden), nn.SiLU(), nn.Linear(hidden, code + 3))
+        nn.init.zeros_(self.step[-1].weight)
+        nn.init.zeros_(self.step[-1].bias)
+
+    def forward(self, x: torch.Tensor, seen: torch.Tensor, parts: torch.Tensor, code: torch.Tensor,
+                color: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """``x, seen (B, C, S, S)`` and ``parts (B, P, S, S)`` in [0, 1], ``code (B, P, K)``,
+        ``color (B, P, 3)`` -> the corrected code ``(B, P, K)`` and colour ``(B, P, 3)`` in [0, 1]."""
+        b, p, k = code.shape
+        pic = torch.cat([2 * x - 1, 2 * seen - 1, x - seen], 1)  # (B, 3C, S, S)
+        inputs = torch.cat([pic[:, None].expand(-1, p, -1, -1, -1), 2 * parts[:, :, None] - 1], 2)  # (B, P, 3C+1, S, S)
+        h = self.net(inputs.flatten(0, 1)).flatten(1)  # (B*P, F)
+        d = self.step(torch.cat([h, code.flatten(0, 1), color.flatten(0, 1)], -1)).view(b, p, k + 3)
+        logit = torch.logit(color.clamp(1e-4, 1 - 1e-4))  # a step in logit space: no colour is pinned at 0 or 1
+        return code + d[..., :k], torch.sigmoid(logit + d[..., k:])
+
+
 def conv_stack(image_size: int, channels: int, width: int) -> tuple[nn.Sequential, int]:
     """Stride-2 convolutions from ``(B, channels, S, S)`` down to 4x4; returns the stack and the
     number of features it leaves per picture (flattened)."""

@@ -16,7 +16,7 @@ from ..errors import ModelError
 from ..files import atomic_write, holds_files, replace_folder
 from ..options import GROWABLE
 from . import build_model
-from .encoder import Feedback
+from .encoder import Feedback, PathPass
 from .prior import NEIGHBOURS_CONFIG, NEIGHBOURS_WEIGHTS, LatentPrior, NeighbourPrior
 
 REPO_MODELS = Path(__file__).resolve().parents[3] / "models"
@@ -200,7 +200,8 @@ def grow_state(state: dict[str, torch.Tensor], old: ModelConfig, new: ModelConfi
     ``palette_logits`` go, and the colour head ``codes.color``, which a palette model carries
     untrained, learns. A feedback pass (``feedback``) added starts from fresh weights whose
     step is zero (``Feedback``), so the grown model encodes what ``old`` did; one removed is
-    dropped. The per-path inputs of ``feedback_paths`` added to a feedback pass (or new paths'
+    dropped; so is a path pass (``path_passes``, ``PathPass``: its last layer starts at zero).
+    The per-path inputs of ``feedback_paths`` added to a feedback pass (or new paths'
     ones) start with zero weights in its first layer, so they too change nothing at first.
     Every other tensor has the same shape in both configs and is copied.
     """
@@ -212,8 +213,15 @@ def grow_state(state: dict[str, torch.Tensor], old: ModelConfig, new: ModelConfi
         raise ModelError(f"only {', '.join(GROWABLE)} can change when fine-tuning; the model's {', '.join(bad)} differ")
     if "palette" in changed and new.palette:
         raise ModelError("a fine-tune can drop a model's palette (learn colours), not give it another one")
+    if old.path_passes and new.path_passes and old.path_pass_width != new.path_pass_width:
+        raise ModelError("path_pass_width can change only where the path pass is added (the model has none)")
     out = {k: v for k, v in state.items() if (new.palette or not k.startswith("palette_logits."))
-           and (new.feedback or not k.startswith("feedback."))}
+           and (new.feedback or not k.startswith("feedback.")) and (new.path_passes or not k.startswith("path_pass."))}
+    if new.path_passes and not old.path_passes:
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(seed)
+            fresh = PathPass(new.image_size, new.channels, new.code, new.path_pass_width)
+        out.update({f"path_pass.{k}": v for k, v in fresh.state_dict().items()})
     if new.feedback and not old.feedback:
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(seed)

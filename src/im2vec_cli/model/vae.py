@@ -13,7 +13,7 @@ from ..options import GROUPINGS
 from ..raster import render_coverage, render_supersampled
 from ..raster.bezier import flatten_closed, polygon_area
 from .decoder import PathCodes, PathDecoder
-from .encoder import Encoder, Feedback, sample_latent
+from .encoder import Encoder, Feedback, PathPass, sample_latent
 from .segments import SegmentPredictor, choose_segments
 
 FEEDBACK_TAU = 0.4  # edge softness (px) of the renders a feedback pass sees: trained models depend on it
@@ -66,6 +66,8 @@ class Im2Vec(nn.Module):
         self.encoder = Encoder(config.image_size, config.channels, config.latent, config.enc_width)
         self.feedback = (Feedback(config.image_size, config.channels, config.latent, config.enc_width,
                                   config.paths if config.feedback_paths else 0) if config.feedback else None)
+        self.path_pass = (PathPass(config.image_size, config.channels, config.code, config.path_pass_width)
+                          if config.path_passes else None)
         self.codes = PathCodes(config.latent, config.lstm_hidden, config.code, config.paths)
         self.decoder = PathDecoder(config.code, config.dec_width, config.dec_layers, config.deform, config.deform_width)
         # Distinct start positions: identical initial circles would cancel under even-odd.
@@ -109,18 +111,18 @@ class Im2Vec(nn.Module):
                 mu = self.feedback(images, seen, mu, parts)
         return (best if select else mu), logvar
 
-    def decode(self, z: torch.Tensor, segments: int | torch.Tensor | None = None) -> Decoded:
+    def decode(self, z: torch.Tensor, segments: int | torch.Tensor | None = None,
+               images: torch.Tensor | None = None) -> Decoded:
         """``z (B, D)`` -> closed cubic paths.
 
         ``segments``: k for every path (default ``config.segments``), or a ``(B, P)`` tensor of
         per-path counts (e.g. from ``choose_segments``), padded as described in ``Decoded``.
+        ``images (B, C, S, S)``: the pictures ``z`` encodes, for the model's path passes
+        (``config.path_passes``, ``_path_passes``); without them, the paths of ``z`` alone.
         """
         cfg = self.config
         b = z.shape[0]
-        code, depth, color, h = self.codes(z)  # (B, P, C), (B, P), (B, P, 3), (B, P, 2H)
-        if self.palette.numel():
-            # fixed palette (colour-segmented data): a soft choice among its colours
-            color = torch.softmax(self.palette_logits(h), -1) @ self.palette.to(h.dtype)  # (B, P, 3)
+        code, depth, color = self.path_state(z, images)
         counts = None
         if isinstance(segments, torch.Tensor):
             counts = segments.to(z.device).long()
@@ -133,11 +135,57 @@ class Im2Vec(nn.Module):
             if k < 1:
                 raise ValueError(f"segments must be >= 1, got {k}")
             pts = self.path_points(code, k)  # (B, P, 3k, 2)
+        return self.shapes(pts, color, depth, counts)
+
+    def path_state(self, z: torch.Tensor, images: torch.Tensor | None = None
+                   ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """``z (B, D)`` -> each path's code ``(B, P, C)``, depth ``(B, P)`` and colour ``(B, P, 3)``,
+        corrected by the path passes when ``images`` are given (``decode``)."""
+        code, depth, color, h = self.codes(z)  # (B, P, C), (B, P), (B, P, 3), (B, P, 2H)
+        if self.palette.numel():
+            # fixed palette (colour-segmented data): a soft choice among its colours
+            color = torch.softmax(self.palette_logits(h), -1) @ self.palette.to(h.dtype)  # (B, P, 3)
+        if images is not None and self.path_pass is not None:
+            code, color = self._path_passes(images, code, depth, color)
+        return code, depth, color
+
+    def shapes(self, pts: torch.Tensor, color: torch.Tensor, depth: torch.Tensor,
+                counts: torch.Tensor | None = None) -> Decoded:
+        """Paths ``(B, P, 3k, 2)`` with their colours and depths, grouped as ``config.grouping`` says."""
+        cfg = self.config
         if cfg.grouping in ("evenodd", "nonzero"):
             # one shape, all paths under that fill rule: its colour is the mean of the path colours
-            return Decoded(pts, color.mean(1, keepdim=True), depth.new_zeros(b, 1),
-                           torch.zeros(cfg.paths, dtype=torch.long, device=z.device), cfg.grouping, counts)
+            return Decoded(pts, color.mean(1, keepdim=True), depth.new_zeros(len(pts), 1),
+                           torch.zeros(cfg.paths, dtype=torch.long, device=pts.device), cfg.grouping, counts)
         return Decoded(pts, color, depth, None, "nonzero", counts)
+
+    def _path_passes(self, images: torch.Tensor, code: torch.Tensor, depth: torch.Tensor,
+                     color: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """``config.path_passes`` passes of ``PathPass`` on the codes ``(B, P, C)`` and colours
+        ``(B, P, 3)`` of pictures ``images``, each seeing the render (at ``config.segments``, the
+        feedback passes' softness) of the last; a fixed palette keeps its colours. With
+        ``config.feedback_select``, outside training, per picture the pass (or the start) whose
+        render is closest to it, as ``encode`` chooses."""
+        cfg = self.config
+        select = cfg.feedback_select and not self.training
+        best, best_err = (code, color), code.new_full((len(code),), math.inf)
+        for i in range(cfg.path_passes + select):
+            with torch.no_grad():
+                pts = self.path_points(code, cfg.segments)
+                seen = self.render(self.shapes(pts, color, depth), tau=FEEDBACK_TAU).to(images.dtype)
+                parts = (render_coverage(pts, size=cfg.image_size, tau=FEEDBACK_TAU, samples=cfg.samples)
+                         .to(images.dtype) if i < cfg.path_passes else None)  # (B, P, S, S)
+            seen = seen.mean(1, keepdim=True) if images.shape[1] == 1 else seen
+            if select:
+                err = (seen - images).pow(2).flatten(1).mean(1)  # (B,)
+                better = err < best_err
+                best = (torch.where(better[:, None, None], code, best[0]),
+                        torch.where(better[:, None, None], color, best[1]))
+                best_err = torch.minimum(err, best_err)
+            if i < cfg.path_passes:
+                new_code, new_color = self.path_pass(images, seen, parts, code, color)
+                code, color = new_code, (color if self.palette.numel() else new_color)
+        return best if select else (code, color)
 
     def path_points(self, code: torch.Tensor, k: int) -> torch.Tensor:
         """Per-path codes ``(B, P, C)`` -> closed paths of ``k`` segments ``(B, P, 3k, 2)`` by the
@@ -157,11 +205,12 @@ class Im2Vec(nn.Module):
             out[sel] = torch.cat([pts, pad], 1)
         return out
 
-    def choose_segments(self, z: torch.Tensor, quality: float) -> torch.Tensor:
-        """Per-path segment counts ``(B, P)`` for quality threshold ``quality`` (sec. 3.3)."""
+    def choose_segments(self, z: torch.Tensor, quality: float, images: torch.Tensor | None = None) -> torch.Tensor:
+        """Per-path segment counts ``(B, P)`` for quality threshold ``quality`` (sec. 3.3), of the
+        paths ``decode(z, ..., images)`` draws (with ``images``, the path passes' codes)."""
         if self.segment_predictor is None:
             raise ValueError("this model has no segment predictor (train one with `im2vec train-aux`)")
-        code = self.codes(z)[0]  # (B, P, C)
+        code = self.path_state(z, images)[0]  # (B, P, C)
         params = self.segment_predictor(code.flatten(0, 1))
         return choose_segments(params, quality, self.config.max_segments).view(code.shape[:2])
 
@@ -178,7 +227,7 @@ class Im2Vec(nn.Module):
     def forward(self, images: torch.Tensor, segments: int | None = None, sample: bool = True):
         """Reconstruct a batch. Returns ``(Decoded, mu, logvar)``; ``z = mu`` when not sampling."""
         mu, logvar = self.encode(images)
-        return self.decode(sample_latent(mu, logvar, sample), segments), mu, logvar
+        return self.decode(sample_latent(mu, logvar, sample), segments, images), mu, logvar
 
     @staticmethod
     def path_areas(points: torch.Tensor, samples: int = 8) -> torch.Tensor:

@@ -1,0 +1,139 @@
+"""The path pass (``ModelConfig.path_passes``, ``model.encoder.PathPass``): a render-and-compare
+correction of each path's code and colour, checked against the chain computed by hand."""
+
+import pytest
+import torch
+
+from im2vec_cli.config import MAX_FEEDBACK, ModelConfig, TrainConfig
+from im2vec_cli.distill import freeze
+from im2vec_cli.errors import Im2VecError, ModelError
+from im2vec_cli.model.pretrained import from_pretrained, grow_state, save_pretrained
+from im2vec_cli.model.vae import FEEDBACK_TAU, Im2Vec
+from im2vec_cli.project import GUESS, LATENT, project_frames
+from im2vec_cli.raster import render_coverage
+
+TINY = dict(image_size=32, latent=16, enc_width=8, lstm_hidden=16, code=8, dec_width=16, dec_layers=3, deform_width=8,
+            path_pass_width=8)
+
+
+def _bars() -> torch.Tensor:
+    x = torch.ones(4, 3, 32, 32)
+    for i, r in enumerate((4, 6, 8, 10)):
+        x[i, :, 16 - r : 16 + r, 10 : 10 + r] = 0.0  # black bars of four sizes on white
+    return x
+
+
+def _moving(model: Im2Vec, std: float = 0.05) -> Im2Vec:
+    """Paths that depend on their codes (an untrained decoder draws circles)."""
+    torch.nn.init.normal_(model.decoder.net[-1].weight, std=std)
+    return model
+
+
+def test_a_path_pass_grown_in_draws_as_before_then_learns_alone():
+    """Added by a fine-tune, the pass changes nothing; trained alone (``train_only="path_pass"``,
+    every other weight frozen) through the renderer it cuts the error, and it reads its render."""
+    torch.manual_seed(0)
+    old, new = ModelConfig(grouping="layers", paths=3, **TINY), ModelConfig(grouping="layers", paths=3, path_passes=1,
+                                                                            **TINY)
+    base = _moving(Im2Vec(old))
+    model = Im2Vec(new)
+    model.load_state_dict(grow_state(base.state_dict(), old, new, seed=2))  # strict
+    x = _bars()
+    with torch.no_grad():
+        mu = model.encode(x)[0]
+        a, b = base.decode(mu, 8), model.decode(mu, 8, x)
+        assert torch.equal(a.points, b.points) and torch.allclose(a.colors, b.colors, atol=1e-6)
+    freeze(model, TrainConfig(train_only="path_pass").train_only)
+    learning = [n for n, p in model.named_parameters() if p.requires_grad]
+    assert learning and all(n.startswith("path_pass.") for n in learning)
+
+    def error() -> torch.Tensor:
+        return (model.render(model.decode(mu, 8, x)) - x).square().mean()
+
+    opt = torch.optim.Adam([p for p in model.parameters() if p.requires_grad], lr=1e-2)
+    with torch.no_grad():
+        before = float(error())
+    for _ in range(40):
+        opt.zero_grad()
+        error().backward()
+        opt.step()
+    with torch.no_grad():
+        assert float(error()) < 0.9 * before
+        assert torch.equal(model.decode(mu, 8).points, a.points)  # without the pictures: z's own paths
+        pts = model.decode(mu, 8, x).points
+        model.render = lambda dec, **kw: torch.zeros(len(x), 3, 32, 32)  # another render: another step
+        assert not torch.allclose(model.decode(mu, 8, x).points, pts)
+
+
+def test_path_passes_chain_and_select_the_closest_by_hand():
+    """Two passes, each on the render and coverage of the last codes; with ``feedback_select``
+    (outside training) each picture keeps the codes and colours whose render is closest to it."""
+    torch.manual_seed(1)
+    cfg = dict(grouping="layers", paths=3, feedback=1, path_passes=2, **TINY)
+    plain = _moving(Im2Vec(ModelConfig(**cfg)), std=0.1)
+    torch.nn.init.normal_(plain.path_pass.step[-1].weight, std=0.3)  # passes that move, some the wrong way
+    model = Im2Vec(ModelConfig(feedback_select=True, **cfg))
+    model.load_state_dict(plain.state_dict())
+    plain.eval(), model.eval()
+    x = torch.rand(6, 3, 32, 32)
+    with torch.no_grad():
+        z = plain.encode(x)[0]
+        code, depth, color, _ = plain.codes(z)
+        chain = [(code, color)]
+        for _ in range(2):
+            pts = plain.path_points(chain[-1][0], 12)
+            seen = plain.render(plain.shapes(pts, chain[-1][1], depth), tau=FEEDBACK_TAU)
+            parts = render_coverage(pts, size=32, tau=FEEDBACK_TAU, samples=plain.config.samples)
+            chain.append(plain.path_pass(x, seen, parts, *chain[-1]))
+        err = torch.stack([(plain.render(plain.shapes(plain.path_points(c, 12), k, depth), tau=FEEDBACK_TAU) - x)
+                           .square().flatten(1).mean(1) for c, k in chain], 1)  # (B, 3)
+        pick = err.argmin(1)
+        assert len(set(pick.tolist())) > 1  # the test tells pictures apart
+        want = torch.stack([c for c, _ in chain], 1)[torch.arange(len(x)), pick]
+        assert torch.allclose(model.path_state(z, x)[0], want, atol=1e-6)
+        assert torch.allclose(plain.path_state(z, x)[0], chain[-1][0], atol=1e-6)
+        assert torch.allclose(plain.path_state(z, x)[2], chain[-1][1], atol=1e-6)
+        model.train()
+        assert torch.allclose(model.path_state(z, x)[0], chain[-1][0], atol=1e-6)
+
+
+def test_a_palette_keeps_its_colours_and_bounds_are_checked(tmp_path):
+    torch.manual_seed(2)
+    model = _moving(Im2Vec(ModelConfig(palette="#000000", path_passes=1, **TINY)))
+    torch.nn.init.normal_(model.path_pass.step[-1].weight, std=0.3)
+    x = _bars()
+    with torch.no_grad():
+        z = model.encode(x)[0]
+        dec = model.decode(z, 8, x)
+        assert torch.equal(dec.colors, model.decode(z, 8).colors)
+        assert not torch.allclose(dec.points, model.decode(z, 8).points)
+    save_pretrained(model, tmp_path / "m")
+    back = from_pretrained(tmp_path / "m")
+    assert back.config.path_passes == 1
+    with torch.no_grad():
+        assert torch.allclose(back.decode(z, 8, x).points, dec.points, atol=1e-6)
+    with pytest.raises(Im2VecError, match="path_passes"):
+        ModelConfig(path_passes=MAX_FEEDBACK + 1, **TINY)
+    with pytest.raises(Im2VecError, match="path_pass_width"):
+        ModelConfig(**{**TINY, "path_pass_width": 12})
+    old = ModelConfig(path_passes=1, **TINY)
+    with pytest.raises(ModelError, match="path_pass_width"):
+        grow_state(Im2Vec(old).state_dict(), old, ModelConfig(**{**TINY, "path_passes": 1, "path_pass_width": 16}))
+    plain = ModelConfig(**TINY)
+    Im2Vec(plain).load_state_dict(grow_state(model.state_dict(), old, plain))  # strict: the pass dropped
+
+
+def test_projection_starts_from_the_path_passes_only_from_the_guess():
+    """``GUESS`` is what ``decode`` draws with the pictures; a fitted latent's codes are its own."""
+    torch.manual_seed(3)
+    model = _moving(Im2Vec(ModelConfig(grouping="layers", paths=2, path_passes=1, **TINY))).eval()
+    torch.nn.init.normal_(model.path_pass.step[-1].weight, std=0.3)
+    x = _bars()
+    with torch.no_grad():
+        want = model.decode(model.encode(x)[0], None, x)
+    got = project_frames(model, x, GUESS)
+    assert torch.allclose(got.decoded.points, want.points, atol=1e-6)
+    assert torch.allclose(got.decoded.colors, want.colors, atol=1e-6)
+    fitted = project_frames(model, x, LATENT)
+    with torch.no_grad():
+        assert torch.allclose(fitted.decoded.points, model.decode(fitted.z).points, atol=1e-6)
