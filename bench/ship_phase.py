@@ -27,6 +27,13 @@ is closest to it.
     python bench/ship_phase.py RUN --set fonts --data DATA [--limit 1000] [--commit SHA] [--dry-run]
     python bench/ship_phase.py --feedback 3 --set icons --data DATA
     python bench/ship_phase.py --feedback 8 --select --set fonts --data DATA
+
+``--path-passes N`` runs the phase's model (or, with no RUN and no ``--feedback``, the shipped
+one, no training) with N passes of its path pass (``ModelConfig.path_passes``, ``PathPass``); the
+latents stay, and so do the priors.
+
+    python bench/ship_phase.py RUN --path-passes 2 --set emoji --data DATA
+    python bench/ship_phase.py --path-passes 3 --set emoji --data DATA
 """
 
 from __future__ import annotations
@@ -61,6 +68,8 @@ def main():
                     help="No run: the shipped model with this many feedback passes, its prior refitted.")
     ap.add_argument("--select", action="store_true",
                     help="With --feedback: keep per picture the pass whose render is closest (feedback_select).")
+    ap.add_argument("--path-passes", type=int, choices=range(1, MAX_FEEDBACK + 1), metavar="N",
+                    help="Run the phase's (no RUN: the shipped) model with this many path passes.")
     ap.add_argument("--set", required=True, dest="name")
     ap.add_argument("--data", required=True)
     ap.add_argument("--limit", type=int, default=1000)
@@ -69,13 +78,15 @@ def main():
                     help="The code commit the run trained at, for the card (default: the checkout's now).")
     ap.add_argument("--dry-run", action="store_true", help="Measure and tell; change nothing.")
     args = ap.parse_args()
-    if (args.run is None) == (args.feedback is None):
-        ap.error("give either a RUN folder or --feedback N")
+    if args.run is not None and args.feedback is not None or args.run is None and not (args.feedback or
+                                                                                        args.path_passes):
+        ap.error("give either a RUN folder or --feedback N (or --path-passes N alone)")
     if args.select and args.feedback is None:
         ap.error("--select goes with --feedback N")
     shipped = ROOT / "models" / args.name
     run = Path(args.run) if args.run else None
-    scratch = run / "ship" if run else ROOT / "runs" / f"ship-{args.name}-feedback{args.feedback}{'-select' * args.select}"
+    scratch = run / "ship" if run else ROOT / "runs" / (f"ship-{args.name}-feedback{args.feedback}{'-select' * args.select}"
+                                                       f"-path{args.path_passes}")
     if scratch.exists():
         shutil.rmtree(scratch)
     exported = json.loads((run / "export.json").read_text()) if run and (run / "export.json").is_file() else None
@@ -91,8 +102,13 @@ def main():
             cfg = json.loads(near.read_text())
             fit_neighbours(Path(args.data) / args.name, str(scratch), str(scratch), neighbours=cfg["neighbours"],
                            seed=cfg["seed"], overwrite=True)
-    else:
+    elif args.feedback:
         step = with_passes(shipped, scratch, args.feedback, Path(args.data) / args.name, args.select)
+    else:
+        shutil.copytree(shipped, scratch)
+        step = json.loads((shipped / "metrics.json").read_text()).get("step", 0)
+    if args.path_passes:
+        with_path_passes(scratch, args.path_passes)
     test = eval_files(Path(args.data) / args.name, args.limit, 0)
     assets = sorted((ROOT / "tests" / "assets" / f"{args.name}_test").glob("*.png"))
     before, after = measure(shipped, test, assets), measure(scratch, test, assets)
@@ -103,7 +119,7 @@ def main():
     print(("ships" if better else "does not beat the shipped model") + f" (step {step}, {len(test)} test images)")
     if better and not args.dry_run:
         ship(run, scratch, shipped, step, len(test), before, after, args.feedback, args.commit or _commit(),
-             exported and exported.get("device", "GPU"), args.select)
+             exported and exported.get("device", "GPU"), args.select, args.path_passes)
         print(f"shipped into {shipped}: commit it")
 
 
@@ -137,9 +153,19 @@ def with_passes(shipped: Path, scratch: Path, passes: int, data: Path, select: b
     return json.loads((shipped / "metrics.json").read_text()).get("step", 0)
 
 
+def with_path_passes(scratch: Path, passes: int) -> None:
+    """``scratch``'s model run with ``passes`` path passes (its one ``PathPass`` applied again)."""
+    from im2vec_cli.config import ModelConfig
+
+    config = ModelConfig.load(scratch / "config.json")
+    if not config.path_passes:
+        raise SystemExit(f"{scratch} has no path pass to apply again: train one first")
+    atomic_write(scratch / "config.json", dataclasses.replace(config, path_passes=passes).to_json())
+
+
 def ship(run: Path | None, scratch: Path, shipped: Path, step: int, n_test: int, before: dict, after: dict,
-         passes: int | None = None, commit: str = "unknown", device: str | None = None, select: bool = False
-         ) -> None:
+         passes: int | None = None, commit: str = "unknown", device: str | None = None, select: bool = False,
+         path_passes: int | None = None) -> None:
     """``device``: the lent GPU the run trained on (bench/device_phases.py), if it did."""
     metrics = json.loads((shipped / "metrics.json").read_text())
     phase = metrics.get("earlier_phases", 0) + len(metrics.get("phases", [])) + 1  # earlier: before this script
@@ -153,6 +179,7 @@ def ship(run: Path | None, scratch: Path, shipped: Path, step: int, n_test: int,
              "steps": step, "steps_added": added, "of_steps": cfg.get("steps", step),
              "minutes": round(_minutes(events), 1), "run_started": started, "test_images": n_test,
              "before": before, "after": after, **({"feedback": passes, "select": select} if passes else {}),
+             **({"path_passes": path_passes} if path_passes else {}), **({} if run else {"untrained": True}),
              **({"device": device} if device else {})}
     # the card's own figure when it was measured on the whole test split (emoji, icons), else the seeded subset's
     key = "test_recon_l2" if metrics.get("test_images") == n_test else f"test_split_{n_test}_recon_l2"
@@ -187,6 +214,11 @@ def ship(run: Path | None, scratch: Path, shipped: Path, step: int, n_test: int,
 def card_section(entry: dict, cfg: dict, events: list[dict]) -> str:
     b, a = entry["before"], entry["after"]
     head = [f"## Phase {entry['phase']} ({entry['date']}, code at {entry['commit']}): the shipped weights", ""]
+    paths = (f" Run with {entry['path_passes']} passes of its path pass (`\"path_passes\": {entry['path_passes']}` "
+             f"in config.json, `--path-passes {entry['path_passes']}`)." if entry.get("path_passes") else "")
+    if entry.get("untrained") and "feedback" not in entry:
+        lines = head + [f"No training: the weights of phase {entry['phase'] - 1}." + paths, ""]
+        return "\n".join(lines + _figures(b, a, entry["test_images"]))
     if "feedback" in entry:
         sel = entry.get("select")
         lines = head + [f"No training: the weights of phase {entry['phase'] - 1} with {entry['feedback']} "
@@ -194,7 +226,7 @@ def card_section(entry: dict, cfg: dict, events: list[dict]) -> str:
                         f"{entry['feedback']}` in config.json)" + (", keeping per picture the guess (the encoder's "
                         "or a pass's) whose render is closest to it (`\"feedback_select\": true`)" if sel else "")
                         + ", the latent prior refitted with its own settings to the latents they give "
-                        f"(`python bench/ship_phase.py --feedback {entry['feedback']}{' --select' * bool(sel)}`).", ""]
+                        f"(`python bench/ship_phase.py --feedback {entry['feedback']}{' --select' * bool(sel)}`)." + paths, ""]
         return "\n".join(lines + _figures(b, a, entry["test_images"]))
     lines = head + [(f"`python bench/device_phases.py run` on a lent {entry['device']} (`im2vec train DATA --init "
                   "<the shipped model> --config ... --steps <as calibrated> --minutes ... --device cuda`, beside the "
@@ -204,7 +236,7 @@ def card_section(entry: dict, cfg: dict, events: list[dict]) -> str:
                   "`make train-<set>` (`im2vec train DATA --init <the shipped model> --config "
                   "models/phases/<set>.json --minutes ...`")
              + f", then `python bench/ship_phase.py`): {_steps(entry)} of {entry['of_steps']} steps in "
-             f"{entry['minutes']} min" + ("" if "device" in entry else " on this machine") + ", with", "",
+             f"{entry['minutes']} min" + ("" if "device" in entry else " on this machine") + "." + paths + " With", "",
              "```json", json.dumps({k: v for k, v in cfg.items() if k not in ("class_name", "format_version")}),
              "```", "", *_figures(b, a, entry["test_images"]), "", "Validation (the run's `metrics.jsonl`):", "",
              "| step | min | val pyramid L2 | val MSE |", "|---|---|---|---|"]
@@ -245,9 +277,11 @@ def phase_span(phases: list[dict], events: list[dict], step: int) -> tuple[int, 
 
 def training_with(training: dict, entry: dict) -> dict:
     """The card's ``training`` summary (steps, wall, phases) with this phase added."""
-    if "feedback" in entry:  # no run: steps and wall stay
-        how = (f"phase {entry['phase']}: {entry['feedback']} feedback passes at inference"
-               + (", the closest kept per picture" if entry.get("select") else "") + ", no training")
+    if "feedback" in entry or entry.get("untrained"):  # no run: steps and wall stay
+        how = (f"phase {entry['phase']}: " + ", ".join(
+            ([f"{entry['feedback']} feedback passes at inference"] if "feedback" in entry else [])
+            + (["the closest kept per picture"] if entry.get("select") else [])
+            + ([f"{entry['path_passes']} path passes"] if entry.get("path_passes") else []) + ["no training"]))
         return {**training, "phases": "; ".join(x for x in (training.get("phases"), how) if x)}
     where = f" on a lent {entry['device']}" if "device" in entry else ""  # bench/device_phases.py
     how = (f"the run of phase {entry['phase'] - 1} resumed to {entry['steps']:,} of its {entry['of_steps']:,} steps"

@@ -3,7 +3,8 @@ phases shipped must not count that phase's steps and minutes twice; and what shi
 
 import json
 
-from bench.ship_phase import _minutes, _steps, card_section, phase_span, ship, training_with
+import pytest
+from bench.ship_phase import _minutes, _steps, card_section, phase_span, ship, training_with, with_path_passes
 
 
 def _run(first_time: float, steps: range) -> list[dict]:
@@ -65,6 +66,32 @@ def test_a_phase_that_keeps_the_closest_pass_says_so_on_the_card_and_in_the_summ
                                                   "picture, no training")
     plain = card_section({**entry, "select": False}, {}, [])
     assert "feedback_select" not in plain and "--select" not in plain
+
+
+def test_path_passes_alone_or_after_a_run_say_so_on_the_card(tmp_path):
+    """``--path-passes N``: with no run, a phase of no training that names the count; after a run,
+    the run's card section names it too; a model without a path pass is refused."""
+    from im2vec_cli.config import ModelConfig
+
+    figures = {"test_recon_l2": 0.0197, "test_recon_l2_stderr": 0.0008, "assets_recon_l2": 0.0199,
+               "assets_fitted_recon_l2": 0.0091}
+    entry = {"phase": 18, "date": "2026-12-05", "commit": "abc1234", "steps": 30000, "steps_added": 0,
+             "of_steps": 30000, "minutes": 0.0, "test_images": 357, "path_passes": 3, "untrained": True,
+             "before": figures, "after": figures}
+    card = card_section(entry, {}, [])
+    assert "No training: the weights of phase 17. Run with 3 passes of its path pass" in card
+    assert '`"path_passes": 3`' in card and "Validation" not in card
+    assert training_with({"steps": 30000}, entry) == {"steps": 30000, "phases": "phase 18: 3 path passes, no training"}
+    run = {**entry, "untrained": False, "steps_added": 500, "minutes": 20.0}
+    trained = card_section(run, {"lr": 5e-4}, [{"event": "val", "step": 500, "time": 1.0, "val_pyramid_l2": 0.03,
+                                                "val_mse": 0.02}])
+    assert "Run with 3 passes of its path pass" in trained and "| 500 | 0 | 0.03 | 0.02 |" in trained
+    (tmp_path / "config.json").write_text(ModelConfig(path_passes=1).to_json())
+    with_path_passes(tmp_path, 2)
+    assert ModelConfig.load(tmp_path / "config.json").path_passes == 2
+    (tmp_path / "config.json").write_text(ModelConfig().to_json())
+    with pytest.raises(SystemExit, match="no path pass"):
+        with_path_passes(tmp_path, 2)
 
 
 def test_shipping_names_the_commit_it_is_given_and_replaces_only_the_model_files(tmp_path):
