@@ -101,4 +101,6 @@ def train_segment_predictor(
     vae = {k: v for k, v in model.state_dict().items() if not k.startswith("segment_predictor.")}
     out.load_state_dict(vae, strict=False)  # everything but the new predictor
     out.segment_predictor.load_state_dict(pred.state_dict())
+    for prior in ("latent_prior", "neighbour_prior"):  # the latents are the same: so are their priors
+        setattr(out, prior, getattr(model, prior, None))
     return out.eval(), report

@@ -116,6 +116,15 @@ def test_train_aux_then_auto_segments(tmp_path):
     # without a predictor: one clear error line
     res = run(["vectorize", img, "-o", str(tmp_path / "x.svg"), "--model", tiny, "--segments", "auto", "--no-refine"])
     assert res.exit_code == 1 and "train-aux" in res.output and not (tmp_path / "x.svg").exists()
+    # in place, over a model with both priors: they are kept as they were (the latents did not change)
+    res = run(["fit-prior", str(data), "--model", tiny, "-o", tiny, "--overwrite", "--components", "2",
+               "--neighbours", "2"])
+    assert res.exit_code == 0, res.output
+    priors = {p.name: p.read_bytes() for p in Path(tiny).glob("latent_*")}
+    assert {"latent_prior.json", "latent_neighbours.json"} <= set(priors)
+    res = run(["train-aux", str(data), "--model", tiny, "-o", tiny, "--overwrite", "--images", "16", "--steps", "50"])
+    assert res.exit_code == 0, res.output
+    assert {p.name: p.read_bytes() for p in Path(tiny).glob("latent_*")} == priors
 
 
 def test_segment_fit_report(tmp_path):
