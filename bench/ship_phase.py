@@ -106,7 +106,7 @@ def main():
         step = with_passes(shipped, scratch, args.feedback, Path(args.data) / args.name, args.select)
     else:
         shutil.copytree(shipped, scratch)
-        step = json.loads((shipped / "metrics.json").read_text()).get("step", 0)
+        step = _shipped_step(shipped)
     if args.path_passes:
         with_path_passes(scratch, args.path_passes)
     test = eval_files(Path(args.data) / args.name, args.limit, 0)
@@ -145,11 +145,16 @@ def with_passes(shipped: Path, scratch: Path, passes: int, data: Path, select: b
         raise SystemExit(f"{shipped} has no feedback module to apply again: train one first")
     shutil.copytree(shipped, scratch)
     atomic_write(scratch / "config.json", dataclasses.replace(config, feedback=passes, feedback_select=select).to_json())
-    prior = json.loads((shipped / "latent_prior.json").read_text())
+    prior = json.loads((shipped / PRIOR_CONFIG).read_text())
     near = shipped / NEIGHBOURS_CONFIG
     k = json.loads(near.read_text())["neighbours"] if near.is_file() else DEFAULT_NEIGHBOURS
     fit_prior(data, str(scratch), str(scratch), components=prior["components"], seed=prior["seed"],
               shrink=prior.get("shrink", 1e-4), neighbours=k, overwrite=True)
+    return _shipped_step(shipped)
+
+
+def _shipped_step(shipped: Path) -> int:
+    """The training steps of the shipped model (its metrics.json)."""
     return json.loads((shipped / "metrics.json").read_text()).get("step", 0)
 
 

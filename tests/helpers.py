@@ -119,3 +119,16 @@ def check_svg(text, w, h):
         assert d.startswith("M") and d.rstrip().endswith("Z")
     assert rasterize_svg(text, w, h).shape == (h, w, 3)
     return paths
+
+
+def descend(error, params, steps: int = 40, lr: float = 1e-2) -> tuple[float, float]:
+    """``steps`` of Adam on ``params`` down ``error()`` (a scalar tensor); its value before and after."""
+    opt = torch.optim.Adam(list(params), lr=lr)
+    with torch.no_grad():
+        before = float(error())
+    for _ in range(steps):
+        opt.zero_grad()
+        error().backward()
+        opt.step()
+    with torch.no_grad():
+        return before, float(error())

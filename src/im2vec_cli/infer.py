@@ -86,13 +86,13 @@ def flat_vector(w: int, h: int, color: tuple[float, float, float]) -> VectorImag
 DEFAULT_QUALITY = 5e-4  # --segments auto: error per added segment (MSE on coverage) worth paying for
 
 
-def segment_counts(model: Im2Vec, z: torch.Tensor, segments: int | str | None,
-                   quality: float | None = None, images: torch.Tensor | None = None) -> int | torch.Tensor | None:
+def segment_counts(model: Im2Vec, code: torch.Tensor, segments: int | str | None,
+                   quality: float | None = None) -> int | torch.Tensor | None:
     """``segments`` as ``Im2Vec.decode`` takes it: ``"auto"`` becomes per-path counts ``(B, P)``
-    chosen by the model's segment predictor at ``quality`` (default ``DEFAULT_QUALITY``) for
-    the paths ``decode(z, ..., images)`` draws."""
+    chosen by the model's segment predictor at ``quality`` (default ``DEFAULT_QUALITY``) for the
+    paths of the codes ``(B, P, C)`` (``Im2Vec.path_state``)."""
     if segments == "auto":
-        return model.choose_segments(z, quality or DEFAULT_QUALITY, images)
+        return model.code_segments(code, quality or DEFAULT_QUALITY)
     return segments
 
 
@@ -116,8 +116,8 @@ def vectorize(model: Im2Vec, images: list[torch.Tensor], *, segments: int | str 
     if todo:
         xs, places = zip(*(model_input(model, images[i]) for i in todo))
         x = torch.stack(xs).to(dev)
-        mu, _ = model.encode(x)
-        dec = model.decode(mu, segment_counts(model, mu, segments, quality, x), x)
+        code, depth, color = model.path_state(model.encode(x)[0], x)  # the path passes run once
+        dec = model.draw(code, depth, color, segment_counts(model, code, segments, quality))
         for j, (i, p) in enumerate(zip(todo, places)):
             vec = resolve_overlaps(to_vector(dec, j, p, max_paths=max_paths), images[i])
             out[i] = clean_guess(vec, p, model.config.image_size) if clean else vec

@@ -171,7 +171,7 @@ def _fit(model: Im2Vec, x: torch.Tensor, s: ProjectSettings, segments: int | Non
     with torch.no_grad():
         # from the encoder's guess, the model's path passes (if any) correct the codes; not a fitted latent's
         code, depth, color = model.path_state(z, None if s.latent_steps else x)  # (N, P, C), (N, P), (N, P, 3)
-        base = model.shapes(model.path_points(code, k), color, depth)
+        base = model.draw(code, depth, color, k)
     if s.code_steps:
         code = _adam(model, target, [code], [s.code_lr], lambda c: _with_points(base, model.path_points(c, k)),
                      s.code_steps, s.tau)[0]

@@ -218,16 +218,11 @@ def grow_state(state: dict[str, torch.Tensor], old: ModelConfig, new: ModelConfi
     out = {k: v for k, v in state.items() if (new.palette or not k.startswith("palette_logits."))
            and (new.feedback or not k.startswith("feedback.")) and (new.path_passes or not k.startswith("path_pass."))}
     if new.path_passes and not old.path_passes:
-        with torch.random.fork_rng(devices=[]):
-            torch.manual_seed(seed)
-            fresh = PathPass(new.image_size, new.channels, new.code, new.path_pass_width)
-        out.update({f"path_pass.{k}": v for k, v in fresh.state_dict().items()})
+        out.update(_fresh("path_pass", seed, lambda: PathPass(new.image_size, new.channels, new.code,
+                                                               new.path_pass_width)))
     if new.feedback and not old.feedback:
-        with torch.random.fork_rng(devices=[]):
-            torch.manual_seed(seed)
-            fresh = Feedback(new.image_size, new.channels, new.latent, new.enc_width,
-                             new.paths if new.feedback_paths else 0)
-        out.update({f"feedback.{k}": v for k, v in fresh.state_dict().items()})
+        out.update(_fresh("feedback", seed, lambda: Feedback(new.image_size, new.channels, new.latent, new.enc_width,
+                                                              new.paths if new.feedback_paths else 0)))
     elif new.feedback:  # the feedback's inputs: 3C channels, then one per path with feedback_paths
         first = out["feedback.net.0.weight"]  # (O, 3C [+ P_old], 4, 4)
         keep = 3 * new.channels + (min(old.paths, new.paths) if old.feedback_paths and new.feedback_paths else 0)
@@ -241,3 +236,12 @@ def grow_state(state: dict[str, torch.Tensor], old: ModelConfig, new: ModelConfi
         noise = torch.randn(rows.shape, generator=gen) * 0.02
         out["codes.step"] = (rows + noise * fresh[:, None]).to(step.dtype)
     return out
+
+
+def _fresh(prefix: str, seed: int, build) -> dict[str, torch.Tensor]:
+    """The state of a module ``build()`` makes under ``seed`` (the global generator left as it
+    was), its keys under ``prefix``: a module a fine-tune adds (``grow_state``)."""
+    with torch.random.fork_rng(devices=[]):
+        torch.manual_seed(seed)
+        module = build()
+    return {f"{prefix}.{k}": v for k, v in module.state_dict().items()}

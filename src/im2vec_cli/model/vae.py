@@ -94,19 +94,13 @@ class Im2Vec(nn.Module):
         cfg = self.config
         mu, logvar = self.encoder(images)
         select = cfg.feedback_select and not self.training
-        best, best_err, parts = mu, mu.new_full((len(mu),), math.inf), None
+        best, best_err = mu, mu.new_full((len(mu),), math.inf)
         for i in range(cfg.feedback + select):
             with torch.no_grad():
-                dec = self.decode(mu)
-                seen = self.render(dec, tau=FEEDBACK_TAU).to(images.dtype)  # (B, 3, S, S), default k
-                if cfg.feedback_paths and i < cfg.feedback:  # (B, P, S, S): each path alone, same softness
-                    parts = render_coverage(dec.points, size=cfg.image_size, tau=FEEDBACK_TAU,
-                                            samples=cfg.samples).to(images.dtype)
-            seen = seen.mean(1, keepdim=True) if images.shape[1] == 1 else seen
+                seen, parts = self._look(self.decode(mu), images, cfg.feedback_paths and i < cfg.feedback)
             if select:
-                err = (seen - images).pow(2).flatten(1).mean(1)  # (B,)
-                best = torch.where((err < best_err)[:, None], mu, best)
-                best_err = torch.minimum(err, best_err)
+                better, best_err = _closer(seen, images, best_err)
+                best = torch.where(better[:, None], mu, best)
             if i < cfg.feedback:
                 mu = self.feedback(images, seen, mu, parts)
         return (best if select else mu), logvar
@@ -120,22 +114,31 @@ class Im2Vec(nn.Module):
         ``images (B, C, S, S)``: the pictures ``z`` encodes, for the model's path passes
         (``config.path_passes``, ``_path_passes``); without them, the paths of ``z`` alone.
         """
+        return self.draw(*self.path_state(z, images), segments)
+
+    def draw(self, code: torch.Tensor, depth: torch.Tensor, color: torch.Tensor,
+             segments: int | torch.Tensor | None = None) -> Decoded:
+        """Each path's code ``(B, P, C)``, depth ``(B, P)`` and colour ``(B, P, 3)`` (``path_state``)
+        -> closed cubic paths, grouped as ``config.grouping`` says; ``segments`` as ``decode`` takes it."""
         cfg = self.config
-        b = z.shape[0]
-        code, depth, color = self.path_state(z, images)
+        b = code.shape[0]
         counts = None
         if isinstance(segments, torch.Tensor):
-            counts = segments.to(z.device).long()
+            counts = segments.to(code.device).long()
             if counts.shape != (b, cfg.paths) or counts.min() < 1:
                 raise ValueError(f"per-path segments must be (B, P) = ({b}, {cfg.paths}) counts >= 1")
-            centre = self.centres.to(z.dtype).expand(b, -1, -1).flatten(0, 1)  # (B*P, 2)
+            centre = self.centres.to(code.dtype).expand(b, -1, -1).flatten(0, 1)  # (B*P, 2)
             pts = self._decode_ragged(code.flatten(0, 1), counts.flatten(), centre).view(b, cfg.paths, -1, 2)
         else:
             k = segments or cfg.segments
             if k < 1:
                 raise ValueError(f"segments must be >= 1, got {k}")
             pts = self.path_points(code, k)  # (B, P, 3k, 2)
-        return self.shapes(pts, color, depth, counts)
+        if cfg.grouping in ("evenodd", "nonzero"):
+            # one shape, all paths under that fill rule: its colour is the mean of the path colours
+            return Decoded(pts, color.mean(1, keepdim=True), depth.new_zeros(b, 1),
+                           torch.zeros(cfg.paths, dtype=torch.long, device=code.device), cfg.grouping, counts)
+        return Decoded(pts, color, depth, None, "nonzero", counts)
 
     def path_state(self, z: torch.Tensor, images: torch.Tensor | None = None
                    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -149,16 +152,6 @@ class Im2Vec(nn.Module):
             code, color = self._path_passes(images, code, depth, color)
         return code, depth, color
 
-    def shapes(self, pts: torch.Tensor, color: torch.Tensor, depth: torch.Tensor,
-                counts: torch.Tensor | None = None) -> Decoded:
-        """Paths ``(B, P, 3k, 2)`` with their colours and depths, grouped as ``config.grouping`` says."""
-        cfg = self.config
-        if cfg.grouping in ("evenodd", "nonzero"):
-            # one shape, all paths under that fill rule: its colour is the mean of the path colours
-            return Decoded(pts, color.mean(1, keepdim=True), depth.new_zeros(len(pts), 1),
-                           torch.zeros(cfg.paths, dtype=torch.long, device=pts.device), cfg.grouping, counts)
-        return Decoded(pts, color, depth, None, "nonzero", counts)
-
     def _path_passes(self, images: torch.Tensor, code: torch.Tensor, depth: torch.Tensor,
                      color: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """``config.path_passes`` passes of ``PathPass`` on the codes ``(B, P, C)`` and colours
@@ -171,21 +164,24 @@ class Im2Vec(nn.Module):
         best, best_err = (code, color), code.new_full((len(code),), math.inf)
         for i in range(cfg.path_passes + select):
             with torch.no_grad():
-                pts = self.path_points(code, cfg.segments)
-                seen = self.render(self.shapes(pts, color, depth), tau=FEEDBACK_TAU).to(images.dtype)
-                parts = (render_coverage(pts, size=cfg.image_size, tau=FEEDBACK_TAU, samples=cfg.samples)
-                         .to(images.dtype) if i < cfg.path_passes else None)  # (B, P, S, S)
-            seen = seen.mean(1, keepdim=True) if images.shape[1] == 1 else seen
+                seen, parts = self._look(self.draw(code, depth, color), images, i < cfg.path_passes)
             if select:
-                err = (seen - images).pow(2).flatten(1).mean(1)  # (B,)
-                better = err < best_err
+                better, best_err = _closer(seen, images, best_err)
                 best = (torch.where(better[:, None, None], code, best[0]),
                         torch.where(better[:, None, None], color, best[1]))
-                best_err = torch.minimum(err, best_err)
             if i < cfg.path_passes:
                 new_code, new_color = self.path_pass(images, seen, parts, code, color)
                 code, color = new_code, (color if self.palette.numel() else new_color)
         return best if select else (code, color)
+
+    def _look(self, dec: Decoded, images: torch.Tensor, coverage: bool) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """What a pass sees of ``dec`` beside ``images (B, C, S, S)``: its render ``(B, C, S, S)`` at
+        ``FEEDBACK_TAU`` and, with ``coverage``, each path's own ``(B, P, S, S)`` at the same softness."""
+        cfg = self.config
+        seen = self.render(dec, tau=FEEDBACK_TAU).to(images.dtype)  # (B, 3, S, S)
+        parts = (render_coverage(dec.points, size=cfg.image_size, tau=FEEDBACK_TAU, samples=cfg.samples)
+                 .to(images.dtype) if coverage else None)
+        return (seen.mean(1, keepdim=True) if images.shape[1] == 1 else seen), parts
 
     def path_points(self, code: torch.Tensor, k: int) -> torch.Tensor:
         """Per-path codes ``(B, P, C)`` -> closed paths of ``k`` segments ``(B, P, 3k, 2)`` by the
@@ -208,9 +204,12 @@ class Im2Vec(nn.Module):
     def choose_segments(self, z: torch.Tensor, quality: float, images: torch.Tensor | None = None) -> torch.Tensor:
         """Per-path segment counts ``(B, P)`` for quality threshold ``quality`` (sec. 3.3), of the
         paths ``decode(z, ..., images)`` draws (with ``images``, the path passes' codes)."""
+        return self.code_segments(self.path_state(z, images)[0], quality)
+
+    def code_segments(self, code: torch.Tensor, quality: float) -> torch.Tensor:
+        """``choose_segments`` of the paths of codes ``(B, P, C)`` (``draw``)."""
         if self.segment_predictor is None:
             raise ValueError("this model has no segment predictor (train one with `im2vec train-aux`)")
-        code = self.path_state(z, images)[0]  # (B, P, C)
         params = self.segment_predictor(code.flatten(0, 1))
         return choose_segments(params, quality, self.config.max_segments).view(code.shape[:2])
 
@@ -234,3 +233,10 @@ class Im2Vec(nn.Module):
         """Absolute area of each path in normalised units, ``(B, P, 3k, 2) -> (B, P)``;
         unused paths collapse to ~0 and are dropped on export."""
         return polygon_area(flatten_closed(points, samples)).abs()
+
+
+def _closer(seen: torch.Tensor, images: torch.Tensor, best_err: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Per picture, whether the render ``seen`` is closer to ``images`` (mean squared error) than
+    ``best_err (B,)``, and the lower of the two errors."""
+    err = (seen - images).pow(2).flatten(1).mean(1)  # (B,)
+    return err < best_err, torch.minimum(err, best_err)

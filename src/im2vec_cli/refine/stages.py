@@ -49,7 +49,7 @@ class Refinement:
         xs, places = zip(*(model_input(self.model, self.images[i]) for i in index))
         with torch.no_grad():
             mu, _ = self.model.encode(torch.stack(xs).to(self.device))
-            return mu, places[0], segment_counts(self.model, mu, segments, quality)
+            return mu, places[0], segment_counts(self.model, self.model.path_state(mu)[0], segments, quality)
 
     def fit_latent(self, mu: torch.Tensor, k, place: Placement, index: list[int]) -> tuple[torch.Tensor, list[int]]:
         """Stage 1: Adam on the latents (the shapes stay on the model's manifold), at ``tau_start``.
