@@ -34,6 +34,12 @@ latents stay, and so do the priors.
 
     python bench/ship_phase.py RUN --path-passes 2 --set emoji --data DATA
     python bench/ship_phase.py --path-passes 3 --set emoji --data DATA
+
+``--solve-colors`` (with a RUN or alone, as ``--path-passes``) sets ``ModelConfig.solve_colors``: the
+layers' colours solved per picture by least squares once the shapes are drawn (a learned-colour
+``layers`` model); the latents and priors stay.
+
+    python bench/ship_phase.py --path-passes 4 --solve-colors --set emoji --data DATA
 """
 
 from __future__ import annotations
@@ -70,6 +76,8 @@ def main():
                     help="With --feedback: keep per picture the pass whose render is closest (feedback_select).")
     ap.add_argument("--path-passes", type=int, choices=range(1, MAX_FEEDBACK + 1), metavar="N",
                     help="Run the phase's (no RUN: the shipped) model with this many path passes.")
+    ap.add_argument("--solve-colors", action="store_true",
+                    help="Solve the layers' colours per picture (ModelConfig.solve_colors), with RUN or alone.")
     ap.add_argument("--set", required=True, dest="name")
     ap.add_argument("--data", required=True)
     ap.add_argument("--limit", type=int, default=1000)
@@ -78,15 +86,15 @@ def main():
                     help="The code commit the run trained at, for the card (default: the checkout's now).")
     ap.add_argument("--dry-run", action="store_true", help="Measure and tell; change nothing.")
     args = ap.parse_args()
-    if args.run is not None and args.feedback is not None or args.run is None and not (args.feedback or
-                                                                                        args.path_passes):
-        ap.error("give either a RUN folder or --feedback N (or --path-passes N alone)")
+    if args.run is not None and args.feedback is not None or args.run is None and not (
+            args.feedback or args.path_passes or args.solve_colors):
+        ap.error("give either a RUN folder or --feedback N (or --path-passes N or --solve-colors alone)")
     if args.select and args.feedback is None:
         ap.error("--select goes with --feedback N")
     shipped = ROOT / "models" / args.name
     run = Path(args.run) if args.run else None
     scratch = run / "ship" if run else ROOT / "runs" / (f"ship-{args.name}-feedback{args.feedback}{'-select' * args.select}"
-                                                       f"-path{args.path_passes}")
+                                                       f"-path{args.path_passes}{'-colors' * args.solve_colors}")
     if scratch.exists():
         shutil.rmtree(scratch)
     exported = json.loads((run / "export.json").read_text()) if run and (run / "export.json").is_file() else None
@@ -109,6 +117,8 @@ def main():
         step = _shipped_step(shipped)
     if args.path_passes:
         with_path_passes(scratch, args.path_passes)
+    if args.solve_colors:
+        with_config(scratch, solve_colors=True)
     test = eval_files(Path(args.data) / args.name, args.limit, 0)
     assets = sorted((ROOT / "tests" / "assets" / f"{args.name}_test").glob("*.png"))
     before, after = measure(shipped, test, assets), measure(scratch, test, assets)
@@ -119,7 +129,7 @@ def main():
     print(("ships" if better else "does not beat the shipped model") + f" (step {step}, {len(test)} test images)")
     if better and not args.dry_run:
         ship(run, scratch, shipped, step, len(test), before, after, args.feedback, args.commit or _commit(),
-             exported and exported.get("device", "GPU"), args.select, args.path_passes)
+             exported and exported.get("device", "GPU"), args.select, args.path_passes, args.solve_colors)
         print(f"shipped into {shipped}: commit it")
 
 
@@ -165,12 +175,20 @@ def with_path_passes(scratch: Path, passes: int) -> None:
     config = ModelConfig.load(scratch / "config.json")
     if not config.path_passes:
         raise SystemExit(f"{scratch} has no path pass to apply again: train one first")
-    atomic_write(scratch / "config.json", dataclasses.replace(config, path_passes=passes).to_json())
+    with_config(scratch, path_passes=passes)
+
+
+def with_config(scratch: Path, **changes) -> None:
+    """``scratch``'s config.json with ``changes`` (``ModelConfig`` keys, checked as it checks them)."""
+    from im2vec_cli.config import ModelConfig
+
+    config = ModelConfig.load(scratch / "config.json")
+    atomic_write(scratch / "config.json", dataclasses.replace(config, **changes).to_json())
 
 
 def ship(run: Path | None, scratch: Path, shipped: Path, step: int, n_test: int, before: dict, after: dict,
          passes: int | None = None, commit: str = "unknown", device: str | None = None, select: bool = False,
-         path_passes: int | None = None) -> None:
+         path_passes: int | None = None, solve_colors: bool = False) -> None:
     """``device``: the lent GPU the run trained on (bench/device_phases.py), if it did."""
     metrics = json.loads((shipped / "metrics.json").read_text())
     phase = metrics.get("earlier_phases", 0) + len(metrics.get("phases", [])) + 1  # earlier: before this script
@@ -184,7 +202,8 @@ def ship(run: Path | None, scratch: Path, shipped: Path, step: int, n_test: int,
              "steps": step, "steps_added": added, "of_steps": cfg.get("steps", step),
              "minutes": round(_minutes(events), 1), "run_started": started, "test_images": n_test,
              "before": before, "after": after, **({"feedback": passes, "select": select} if passes else {}),
-             **({"path_passes": path_passes} if path_passes else {}), **({} if run else {"untrained": True}),
+             **({"path_passes": path_passes} if path_passes else {}), **({"solve_colors": True} if solve_colors else {}),
+             **({} if run else {"untrained": True}),
              **({"device": device} if device else {})}
     # the card's own figure when it was measured on the whole test split (emoji, icons), else the seeded subset's
     key = "test_recon_l2" if metrics.get("test_images") == n_test else f"test_split_{n_test}_recon_l2"
@@ -221,6 +240,9 @@ def card_section(entry: dict, cfg: dict, events: list[dict]) -> str:
     head = [f"## Phase {entry['phase']} ({entry['date']}, code at {entry['commit']}): the shipped weights", ""]
     paths = (f" Run with {entry['path_passes']} passes of its path pass (`\"path_passes\": {entry['path_passes']}` "
              f"in config.json, `--path-passes {entry['path_passes']}`)." if entry.get("path_passes") else "")
+    paths += (" Its layers' colours are solved per picture by least squares once the shapes are drawn "
+              "(`\"solve_colors\": true` in config.json, `--solve-colors`; `raster.solve_colors`)."
+              if entry.get("solve_colors") else "")
     if entry.get("untrained") and "feedback" not in entry:
         lines = head + [f"No training: the weights of phase {entry['phase'] - 1}." + paths, ""]
         return "\n".join(lines + _figures(b, a, entry["test_images"]))
@@ -286,7 +308,8 @@ def training_with(training: dict, entry: dict) -> dict:
         how = (f"phase {entry['phase']}: " + ", ".join(
             ([f"{entry['feedback']} feedback passes at inference"] if "feedback" in entry else [])
             + (["the closest kept per picture"] if entry.get("select") else [])
-            + ([f"{entry['path_passes']} path passes"] if entry.get("path_passes") else []) + ["no training"]))
+            + ([f"{entry['path_passes']} path passes"] if entry.get("path_passes") else [])
+            + (["colours solved per picture"] if entry.get("solve_colors") else []) + ["no training"]))
         return {**training, "phases": "; ".join(x for x in (training.get("phases"), how) if x)}
     where = f" on a lent {entry['device']}" if "device" in entry else ""  # bench/device_phases.py
     how = (f"the run of phase {entry['phase'] - 1} resumed to {entry['steps']:,} of its {entry['of_steps']:,} steps"

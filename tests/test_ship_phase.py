@@ -4,7 +4,16 @@ phases shipped must not count that phase's steps and minutes twice; and what shi
 import json
 
 import pytest
-from bench.ship_phase import _minutes, _steps, card_section, phase_span, ship, training_with, with_path_passes
+from bench.ship_phase import (
+    _minutes,
+    _steps,
+    card_section,
+    phase_span,
+    ship,
+    training_with,
+    with_config,
+    with_path_passes,
+)
 
 
 def _run(first_time: float, steps: range) -> list[dict]:
@@ -124,3 +133,27 @@ def test_a_phase_from_a_lent_gpu_names_it_in_the_cards_training_summary():
     assert after == {"steps": 7370, "wall": "59 min + 7 min (GPU)",
                      "hardware": "2 CPU cores, no GPU; phase 6 on a lent NVIDIA H200",
                      "phases": "one run; phase 6: bench/device_phases.py from phase 5 on a lent NVIDIA H200, 7,270 steps"}
+
+
+def test_solved_colours_say_so_on_the_card_and_only_a_layered_learned_colour_model_takes_them(tmp_path):
+    """``--solve-colors``: the card and the training summary name it; ``with_config`` checks the
+    config as ``ModelConfig`` does (a one-shape or palette model is refused, nothing written)."""
+    from im2vec_cli.config import ConfigError, ModelConfig
+
+    figures = {"test_recon_l2": 0.0193, "test_recon_l2_stderr": 0.0008, "assets_recon_l2": 0.0195,
+               "assets_fitted_recon_l2": 0.0091}
+    entry = {"phase": 19, "date": "2026-12-05", "commit": "abc1234", "steps": 30000, "steps_added": 0,
+             "of_steps": 30000, "minutes": 0.0, "test_images": 357, "path_passes": 4, "solve_colors": True,
+             "untrained": True, "before": figures, "after": figures}
+    card = card_section(entry, {}, [])
+    assert "No training: the weights of phase 18. Run with 4 passes" in card and '`"solve_colors": true`' in card
+    assert training_with({"steps": 30000}, entry)["phases"] == ("phase 19: 4 path passes, colours solved per picture, "
+                                                                "no training")
+    (tmp_path / "config.json").write_text(ModelConfig(grouping="layers").to_json())
+    with_config(tmp_path, solve_colors=True)
+    assert ModelConfig.load(tmp_path / "config.json").solve_colors
+    before = ModelConfig().to_json()
+    (tmp_path / "config.json").write_text(before)
+    with pytest.raises(ConfigError, match="solve_colors"):
+        with_config(tmp_path, solve_colors=True)
+    assert (tmp_path / "config.json").read_text() == before

@@ -117,6 +117,7 @@ class ModelConfig(JsonConfig):
     feedback_select: bool = False  # at inference, keep per picture the pass whose render is closest to it (one render more)
     path_passes: int = 0  # render-and-compare passes correcting each path's code and colour (model.encoder.PathPass), 0 to MAX_FEEDBACK
     path_pass_width: int = 16  # first conv width of the path pass (a multiple of 8)
+    solve_colors: bool = False  # at inference, given the picture, the layers' colours by least squares (raster.solve_colors)
     segment_predictor: int = 0  # hidden width of the segment-count MLP (sec. 3.3); 0: none (`im2vec train-aux` adds it)
 
     def __post_init__(self):
@@ -138,6 +139,8 @@ class ModelConfig(JsonConfig):
             raise ConfigError("ModelConfig.feedback_paths needs feedback >= 1 (it adds inputs to the feedback pass)")
         if self.feedback_select and not self.feedback:
             raise ConfigError("ModelConfig.feedback_select needs feedback >= 1 (it chooses among the passes)")
+        if self.solve_colors and (self.grouping != "layers" or self.palette):
+            raise ConfigError("ModelConfig.solve_colors needs grouping 'layers' and learned colours (no palette)")
         if self.min_segments > self.max_segments:
             raise ConfigError(f"ModelConfig.min_segments ({self.min_segments}) is above max_segments ({self.max_segments})")
         for key, allowed in (("arch", ARCHS), ("fit", FITS),

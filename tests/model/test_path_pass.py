@@ -1,6 +1,8 @@
 """The path pass (``ModelConfig.path_passes``, ``model.encoder.PathPass``): a render-and-compare
 correction of each path's code and colour, checked against the chain computed by hand."""
 
+import dataclasses
+
 import pytest
 import torch
 
@@ -8,7 +10,7 @@ from im2vec_cli.config import MAX_FEEDBACK, ModelConfig, TrainConfig
 from im2vec_cli.distill import freeze
 from im2vec_cli.errors import Im2VecError, ModelError
 from im2vec_cli.model.pretrained import from_pretrained, grow_state, save_pretrained
-from im2vec_cli.model.vae import FEEDBACK_TAU, Im2Vec
+from im2vec_cli.model.vae import COLOR_TAU, FEEDBACK_TAU, Im2Vec
 from im2vec_cli.project import GUESS, LATENT, project_frames
 from im2vec_cli.raster import render_coverage
 from tests.helpers import descend
@@ -132,3 +134,28 @@ def test_projection_starts_from_the_path_passes_only_from_the_guess():
     fitted = project_frames(model, x, LATENT)
     with torch.no_grad():
         assert torch.allclose(fitted.decoded.points, model.decode(fitted.z).points, atol=1e-6)
+
+
+def test_solved_colours_draw_closer_to_the_picture_outside_training_only():
+    """``solve_colors``: given the picture, the layers' colours are those whose exact render
+    (``composite_over``) is closest to it; the shapes and the training forward stay as they were."""
+    torch.manual_seed(4)
+    x = 1 - (1 - _bars()) * torch.tensor([0.1, 0.7, 0.9]).view(1, 3, 1, 1)  # orange bars: not what the heads guess
+    plain = _moving(Im2Vec(ModelConfig(grouping="layers", paths=3, **TINY))).eval()
+    solved = Im2Vec(ModelConfig(grouping="layers", paths=3, solve_colors=True, **TINY)).eval()
+    solved.load_state_dict(plain.state_dict())
+    z = plain.encode(x)[0]
+    with torch.no_grad():
+        a, b = plain.decode(z, images=x), solved.decode(z, images=x)
+        err = lambda colors: float((plain.render(dataclasses.replace(a, colors=colors), tau=COLOR_TAU, composite="over")  # noqa: E731
+                                    - x).pow(2).mean())
+        nudged = [b.colors + 0.05 * torch.randn_like(b.colors) for _ in range(8)]
+        assert torch.equal(a.points, b.points)
+        assert err(b.colors) < 0.9 * err(a.colors)
+        assert all(err(b.colors) <= err(c.clamp(0, 1)) for c in nudged)  # a least-squares minimum
+    solved.train()
+    torch.manual_seed(5)
+    c = solved.decode(z, images=x).colors
+    plain.train()
+    torch.manual_seed(5)
+    assert torch.equal(c, plain.decode(z, images=x).colors)

@@ -10,13 +10,15 @@ from torch import nn
 
 from ..config import ModelConfig
 from ..options import GROUPINGS
-from ..raster import render_coverage, render_supersampled
+from ..raster import render_coverage, render_supersampled, solve_colors
 from ..raster.bezier import flatten_closed, polygon_area
 from .decoder import PathCodes, PathDecoder
 from .encoder import Encoder, Feedback, PathPass, sample_latent
 from .segments import SegmentPredictor, choose_segments
 
 FEEDBACK_TAU = 0.4  # edge softness (px) of the renders a feedback pass sees: trained models depend on it
+COLOR_TAU, COLOR_RIDGE = 0.2, 1e-3  # ModelConfig.solve_colors: coverage softness (px), pull to the network's colour
+# (64 emoji test assets, phase 18: 0.01950 -> 0.0178 for tau 0.15-0.3 and ridge 1e-4-1e-3; 0.6 px or 1e-2 worse)
 
 
 def parse_palette(spec: str) -> torch.Tensor | None:
@@ -143,13 +145,19 @@ class Im2Vec(nn.Module):
     def path_state(self, z: torch.Tensor, images: torch.Tensor | None = None
                    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """``z (B, D)`` -> each path's code ``(B, P, C)``, depth ``(B, P)`` and colour ``(B, P, 3)``,
-        corrected by the path passes when ``images`` are given (``decode``)."""
+        corrected by the path passes when ``images`` are given (``decode``); with
+        ``config.solve_colors``, outside training, the colours then those whose render is closest
+        to the pictures (``raster.solve_colors``, the shapes and their order as drawn)."""
         code, depth, color, h = self.codes(z)  # (B, P, C), (B, P), (B, P, 3), (B, P, 2H)
         if self.palette.numel():
             # fixed palette (colour-segmented data): a soft choice among its colours
             color = torch.softmax(self.palette_logits(h), -1) @ self.palette.to(h.dtype)  # (B, P, 3)
         if images is not None and self.path_pass is not None:
             code, color = self._path_passes(images, code, depth, color)
+        if images is not None and self.config.solve_colors and not self.training:
+            cover = render_coverage(self.draw(code, depth, color).points, size=self.config.image_size,
+                                    tau=COLOR_TAU, samples=self.config.samples)  # (B, P, S, S)
+            color = solve_colors(cover.to(images.dtype), depth, images.expand(-1, 3, -1, -1), color, COLOR_RIDGE)
         return code, depth, color
 
     def _path_passes(self, images: torch.Tensor, code: torch.Tensor, depth: torch.Tensor,

@@ -96,3 +96,47 @@ def _soft(coverage, colors, depth, temperature, background):
         total = total + w
         rgb = rgb + w * colors[:, i].view(-1, 3, 1, 1)
     return rgb / total.clamp_min(1e-12)  # (B, 3, H, W)
+
+
+def solve_colors(
+    coverage: torch.Tensor, depth: torch.Tensor, target: torch.Tensor, prior: torch.Tensor,
+    ridge: float = 1e-3, background: float = 1.0,
+) -> torch.Tensor:
+    """The layer colours whose ``composite_over`` is closest to ``target``: a least-squares solve.
+
+    With the coverages and the order fixed, ``composite_over`` is linear in the colours: pixel
+    ``x`` is ``background * t(x) + sum_i c_i w_i(x)``, where ``w_i`` is layer ``i``'s alpha times
+    the transparency of the layers in front of it and ``t`` that of them all. The normal equations
+    of ``min sum_x |that - target(x)|^2 + ridge * N * sum_i |c_i - prior_i|^2`` (N pixels) are
+    solved per picture; the ridge keeps a hidden layer at its prior colour. Results are clamped to
+    [0, 1]. Not differentiated through (inference).
+
+    Args:
+        coverage: ``(B, G, H, W)`` alpha of each layer in [0, 1].
+        depth: ``(B, G)``; larger is in front.
+        target: ``(B, 3, H, W)`` in [0, 1].
+        prior: ``(B, G, 3)`` colours a layer keeps where the picture says nothing of it.
+        ridge: weight of the prior per pixel (> 0).
+        background: grey level of the background.
+
+    Returns:
+        ``(B, G, 3)`` colours.
+    """
+    _check(coverage, prior, depth)
+    if target.shape != (coverage.shape[0], 3, *coverage.shape[2:]):
+        raise ValueError(f"target must be (B, 3, H, W) = {(coverage.shape[0], 3, *coverage.shape[2:])}, "
+                         f"got {tuple(target.shape)}")
+    if ridge <= 0:
+        raise ValueError(f"ridge must be > 0, got {ridge}")
+    with torch.no_grad():
+        b, g, h, w = coverage.shape
+        front = torch.argsort(depth, dim=1, descending=True)  # (B, G): front to back
+        a = torch.gather(coverage, 1, front.view(b, g, 1, 1).expand(b, g, h, w))
+        clear = torch.cumprod(torch.cat([torch.ones_like(a[:, :1]), 1 - a], 1), 1)  # (B, G+1, H, W)
+        weight = torch.empty_like(a).scatter_(1, front.view(b, g, 1, 1).expand(b, g, h, w), a * clear[:, :-1])
+        wf = weight.flatten(2)  # (B, G, N), layers in their own order again
+        rest = (target - background * clear[:, -1:]).flatten(2)  # (B, 3, N)
+        lam = ridge * h * w
+        lhs = wf @ wf.transpose(1, 2) + lam * torch.eye(g, dtype=wf.dtype, device=wf.device)  # (B, G, G)
+        rhs = wf @ rest.transpose(1, 2) + lam * prior.to(wf.dtype)  # (B, G, 3)
+        return torch.linalg.solve(lhs, rhs).clamp(0, 1).to(prior.dtype)
