@@ -20,6 +20,14 @@ def _run(first_time: float, steps: range) -> list[dict]:
     return [{"event": "train", "step": s, "time": first_time + s} for s in steps]
 
 
+def _untrained(phase: int, steps: int, test_images: int, **kind) -> dict:
+    """The ship entry of a phase that trained nothing (``kind``: its keys, e.g. ``feedback``), figures unchanged."""
+    figures = {"test_recon_l2": 0.02, "test_recon_l2_stderr": 0.0008, "assets_recon_l2": 0.02,
+               "assets_fitted_recon_l2": 0.009}
+    return {"phase": phase, "date": "2026-12-05", "commit": "abc1234", "steps": steps, "steps_added": 0,
+            "of_steps": steps, "minutes": 0.0, "test_images": test_images, **kind, "before": figures, "after": figures}
+
+
 def test_a_resumed_run_adds_only_the_steps_after_its_shipped_phase():
     events = _run(100.0, range(50, 4001, 50))
     added, mine = phase_span([{"steps": 2250, "run_started": 150.0}], events, 4000)
@@ -64,11 +72,7 @@ def test_a_phase_of_feedback_passes_adds_no_steps_and_says_so_on_the_card():
 
 
 def test_a_phase_that_keeps_the_closest_pass_says_so_on_the_card_and_in_the_summary():
-    figures = {"test_recon_l2": 0.0359, "test_recon_l2_stderr": 0.0009, "assets_recon_l2": 0.0345,
-               "assets_fitted_recon_l2": 0.0042}
-    entry = {"phase": 16, "date": "2026-12-05", "commit": "abc1234", "steps": 25738, "steps_added": 0,
-             "of_steps": 25738, "minutes": 0.0, "test_images": 749, "feedback": 8, "select": True,
-             "before": figures, "after": figures}
+    entry = _untrained(16, 25738, 749, feedback=8, select=True)
     card = card_section(entry, {}, [])
     assert '(`"feedback_select": true`)' in card and "`python bench/ship_phase.py --feedback 8 --select`" in card
     assert training_with({}, entry)["phases"] == ("phase 16: 8 feedback passes at inference, the closest kept per "
@@ -82,11 +86,7 @@ def test_path_passes_alone_or_after_a_run_say_so_on_the_card(tmp_path):
     the run's card section names it too; a model without a path pass is refused."""
     from im2vec_cli.config import ModelConfig
 
-    figures = {"test_recon_l2": 0.0197, "test_recon_l2_stderr": 0.0008, "assets_recon_l2": 0.0199,
-               "assets_fitted_recon_l2": 0.0091}
-    entry = {"phase": 18, "date": "2026-12-05", "commit": "abc1234", "steps": 30000, "steps_added": 0,
-             "of_steps": 30000, "minutes": 0.0, "test_images": 357, "path_passes": 3, "untrained": True,
-             "before": figures, "after": figures}
+    entry = _untrained(18, 30000, 357, path_passes=3, untrained=True)
     card = card_section(entry, {}, [])
     assert "No training: the weights of phase 17. Run with 3 passes of its path pass" in card
     assert '`"path_passes": 3`' in card and "Validation" not in card
@@ -140,11 +140,7 @@ def test_solved_colours_say_so_on_the_card_and_only_a_layered_learned_colour_mod
     config as ``ModelConfig`` does (a one-shape or palette model is refused, nothing written)."""
     from im2vec_cli.config import ConfigError, ModelConfig
 
-    figures = {"test_recon_l2": 0.0193, "test_recon_l2_stderr": 0.0008, "assets_recon_l2": 0.0195,
-               "assets_fitted_recon_l2": 0.0091}
-    entry = {"phase": 19, "date": "2026-12-05", "commit": "abc1234", "steps": 30000, "steps_added": 0,
-             "of_steps": 30000, "minutes": 0.0, "test_images": 357, "path_passes": 4, "solve_colors": True,
-             "untrained": True, "before": figures, "after": figures}
+    entry = _untrained(19, 30000, 357, path_passes=4, solve_colors=True, untrained=True)
     card = card_section(entry, {}, [])
     assert "No training: the weights of phase 18. Run with 4 passes" in card and '`"solve_colors": true`' in card
     assert training_with({"steps": 30000}, entry)["phases"] == ("phase 19: 4 path passes, colours solved per picture, "

@@ -155,7 +155,7 @@ class Im2Vec(nn.Module):
         if images is not None and self.path_pass is not None:
             code, color = self._path_passes(images, code, depth, color)
         if images is not None and self.config.solve_colors and not self.training:
-            cover = render_coverage(self.draw(code, depth, color).points, size=self.config.image_size,
+            cover = render_coverage(self.path_points(code, self.config.segments), size=self.config.image_size,
                                     tau=COLOR_TAU, samples=self.config.samples)  # (B, P, S, S)
             color = solve_colors(cover.to(images.dtype), depth, images.expand(-1, 3, -1, -1), color, COLOR_RIDGE)
         return code, depth, color

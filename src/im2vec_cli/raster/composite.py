@@ -130,10 +130,10 @@ def solve_colors(
         raise ValueError(f"ridge must be > 0, got {ridge}")
     with torch.no_grad():
         b, g, h, w = coverage.shape
-        front = torch.argsort(depth, dim=1, descending=True)  # (B, G): front to back
-        a = torch.gather(coverage, 1, front.view(b, g, 1, 1).expand(b, g, h, w))
+        front = torch.argsort(depth, dim=1, descending=True).view(b, g, 1, 1).expand(b, g, h, w)  # front to back
+        a = torch.gather(coverage, 1, front)
         clear = torch.cumprod(torch.cat([torch.ones_like(a[:, :1]), 1 - a], 1), 1)  # (B, G+1, H, W)
-        weight = torch.empty_like(a).scatter_(1, front.view(b, g, 1, 1).expand(b, g, h, w), a * clear[:, :-1])
+        weight = torch.empty_like(a).scatter_(1, front, a * clear[:, :-1])
         wf = weight.flatten(2)  # (B, G, N), layers in their own order again
         rest = (target - background * clear[:, -1:]).flatten(2)  # (B, 3, N)
         lam = ridge * h * w
