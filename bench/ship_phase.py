@@ -40,6 +40,9 @@ layers' colours solved per picture by least squares once the shapes are drawn (a
 ``layers`` model); the latents and priors stay.
 
     python bench/ship_phase.py --path-passes 4 --solve-colors --set emoji --data DATA
+
+``--solve-order`` (implies ``--solve-colors``) sets ``ModelConfig.solve_order`` too: before the
+colours, the layers' order is searched per picture by its solved render's error.
 """
 
 from __future__ import annotations
@@ -78,6 +81,8 @@ def main():
                     help="Run the phase's (no RUN: the shipped) model with this many path passes.")
     ap.add_argument("--solve-colors", action="store_true",
                     help="Solve the layers' colours per picture (ModelConfig.solve_colors), with RUN or alone.")
+    ap.add_argument("--solve-order", action="store_true",
+                    help="Search the layers' order per picture too (ModelConfig.solve_order; implies --solve-colors).")
     ap.add_argument("--set", required=True, dest="name")
     ap.add_argument("--data", required=True)
     ap.add_argument("--limit", type=int, default=1000)
@@ -86,6 +91,7 @@ def main():
                     help="The code commit the run trained at, for the card (default: the checkout's now).")
     ap.add_argument("--dry-run", action="store_true", help="Measure and tell; change nothing.")
     args = ap.parse_args()
+    args.solve_colors = args.solve_colors or args.solve_order
     if args.run is not None and args.feedback is not None or args.run is None and not (
             args.feedback or args.path_passes or args.solve_colors):
         ap.error("give either a RUN folder or --feedback N (or --path-passes N or --solve-colors alone)")
@@ -94,7 +100,8 @@ def main():
     shipped = ROOT / "models" / args.name
     run = Path(args.run) if args.run else None
     scratch = run / "ship" if run else ROOT / "runs" / (f"ship-{args.name}-feedback{args.feedback}{'-select' * args.select}"
-                                                       f"-path{args.path_passes}{'-colors' * args.solve_colors}")
+                                                       f"-path{args.path_passes}{'-colors' * args.solve_colors}"
+                                                       f"{'-order' * args.solve_order}")
     if scratch.exists():
         shutil.rmtree(scratch)
     exported = json.loads((run / "export.json").read_text()) if run and (run / "export.json").is_file() else None
@@ -118,7 +125,7 @@ def main():
     if args.path_passes:
         with_path_passes(scratch, args.path_passes)
     if args.solve_colors:
-        with_config(scratch, solve_colors=True)
+        with_config(scratch, solve_colors=True, solve_order=args.solve_order)
     test = eval_files(Path(args.data) / args.name, args.limit, 0)
     assets = sorted((ROOT / "tests" / "assets" / f"{args.name}_test").glob("*.png"))
     before, after = measure(shipped, test, assets), measure(scratch, test, assets)
@@ -129,7 +136,8 @@ def main():
     print(("ships" if better else "does not beat the shipped model") + f" (step {step}, {len(test)} test images)")
     if better and not args.dry_run:
         ship(run, scratch, shipped, step, len(test), before, after, args.feedback, args.commit or _commit(),
-             exported and exported.get("device", "GPU"), args.select, args.path_passes, args.solve_colors)
+             exported and exported.get("device", "GPU"), args.select, args.path_passes, args.solve_colors,
+             args.solve_order)
         print(f"shipped into {shipped}: commit it")
 
 
@@ -188,7 +196,7 @@ def with_config(scratch: Path, **changes) -> None:
 
 def ship(run: Path | None, scratch: Path, shipped: Path, step: int, n_test: int, before: dict, after: dict,
          passes: int | None = None, commit: str = "unknown", device: str | None = None, select: bool = False,
-         path_passes: int | None = None, solve_colors: bool = False) -> None:
+         path_passes: int | None = None, solve_colors: bool = False, solve_order: bool = False) -> None:
     """``device``: the lent GPU the run trained on (bench/device_phases.py), if it did."""
     metrics = json.loads((shipped / "metrics.json").read_text())
     phase = metrics.get("earlier_phases", 0) + len(metrics.get("phases", [])) + 1  # earlier: before this script
@@ -203,6 +211,7 @@ def ship(run: Path | None, scratch: Path, shipped: Path, step: int, n_test: int,
              "minutes": round(_minutes(events), 1), "run_started": started, "test_images": n_test,
              "before": before, "after": after, **({"feedback": passes, "select": select} if passes else {}),
              **({"path_passes": path_passes} if path_passes else {}), **({"solve_colors": True} if solve_colors else {}),
+             **({"solve_order": True} if solve_order else {}),
              **({} if run else {"untrained": True}),
              **({"device": device} if device else {})}
     # the card's own figure when it was measured on the whole test split (emoji, icons), else the seeded subset's
@@ -243,6 +252,8 @@ def card_section(entry: dict, cfg: dict, events: list[dict]) -> str:
     paths += (" Its layers' colours are solved per picture by least squares once the shapes are drawn "
               "(`\"solve_colors\": true` in config.json, `--solve-colors`; `raster.solve_colors`)."
               if entry.get("solve_colors") else "")
+    paths += (" Before that, the layers' order is searched per picture, each order scored by its solved render "
+              "(`\"solve_order\": true`, `--solve-order`; `raster.solve_order`)." if entry.get("solve_order") else "")
     if entry.get("untrained") and "feedback" not in entry:
         lines = head + [f"No training: the weights of phase {entry['phase'] - 1}." + paths, ""]
         return "\n".join(lines + _figures(b, a, entry["test_images"]))
@@ -309,7 +320,8 @@ def training_with(training: dict, entry: dict) -> dict:
             ([f"{entry['feedback']} feedback passes at inference"] if "feedback" in entry else [])
             + (["the closest kept per picture"] if entry.get("select") else [])
             + ([f"{entry['path_passes']} path passes"] if entry.get("path_passes") else [])
-            + (["colours solved per picture"] if entry.get("solve_colors") else []) + ["no training"]))
+            + (["colours solved per picture"] if entry.get("solve_colors") else [])
+            + (["the layers' order searched per picture"] if entry.get("solve_order") else []) + ["no training"]))
         return {**training, "phases": "; ".join(x for x in (training.get("phases"), how) if x)}
     where = f" on a lent {entry['device']}" if "device" in entry else ""  # bench/device_phases.py
     how = (f"the run of phase {entry['phase'] - 1} resumed to {entry['steps']:,} of its {entry['of_steps']:,} steps"

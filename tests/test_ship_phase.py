@@ -145,9 +145,15 @@ def test_solved_colours_say_so_on_the_card_and_only_a_layered_learned_colour_mod
     assert "No training: the weights of phase 18. Run with 4 passes" in card and '`"solve_colors": true`' in card
     assert training_with({"steps": 30000}, entry)["phases"] == ("phase 19: 4 path passes, colours solved per picture, "
                                                                 "no training")
+    ordered = _untrained(21, 30000, 357, solve_colors=True, solve_order=True, untrained=True)
+    assert '`"solve_order": true`' in card_section(ordered, {}, []) and '"solve_order"' not in card
+    assert training_with({"steps": 30000}, ordered)["phases"] == ("phase 21: colours solved per picture, the layers' "
+                                                                  "order searched per picture, no training")
     (tmp_path / "config.json").write_text(ModelConfig(grouping="layers").to_json())
-    with_config(tmp_path, solve_colors=True)
+    with_config(tmp_path, solve_colors=True, solve_order=False)
     assert ModelConfig.load(tmp_path / "config.json").solve_colors
+    with_config(tmp_path, solve_order=True)
+    assert ModelConfig.load(tmp_path / "config.json").solve_order
     before = ModelConfig().to_json()
     (tmp_path / "config.json").write_text(before)
     with pytest.raises(ConfigError, match="solve_colors"):

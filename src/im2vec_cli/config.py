@@ -118,6 +118,7 @@ class ModelConfig(JsonConfig):
     path_passes: int = 0  # render-and-compare passes correcting each path's code and colour (model.encoder.PathPass), 0 to MAX_FEEDBACK
     path_pass_width: int = 16  # first conv width of the path pass (a multiple of 8)
     solve_colors: bool = False  # at inference, given the picture, the layers' colours by least squares (raster.solve_colors)
+    solve_order: bool = False  # ...and before that their order, searched by the solved render's error (raster.solve_order)
     segment_predictor: int = 0  # hidden width of the segment-count MLP (sec. 3.3); 0: none (`im2vec train-aux` adds it)
 
     def __post_init__(self):
@@ -141,6 +142,8 @@ class ModelConfig(JsonConfig):
             raise ConfigError("ModelConfig.feedback_select needs feedback >= 1 (it chooses among the passes)")
         if self.solve_colors and (self.grouping != "layers" or self.palette):
             raise ConfigError("ModelConfig.solve_colors needs grouping 'layers' and learned colours (no palette)")
+        if self.solve_order and not self.solve_colors:
+            raise ConfigError("ModelConfig.solve_order needs solve_colors (each order is scored with its colours solved)")
         if self.min_segments > self.max_segments:
             raise ConfigError(f"ModelConfig.min_segments ({self.min_segments}) is above max_segments ({self.max_segments})")
         for key, allowed in (("arch", ARCHS), ("fit", FITS),
@@ -170,6 +173,7 @@ class TrainConfig(JsonConfig):
     distill: float = 0.0  # > 0: weight of the encoder's squared distance to the fitted latents (distill.Teacher)
     distill_images: int = 4096  # training images whose latents the teacher fits (when distill > 0)
     outline: float = 0.0  # > 0: weight of the mean squared distance (px^2) of the traced outlines to the paths (outline_aux)
+    solved: bool = False  # the loss sees the colours solved (ModelConfig.solve_colors), composited "over" as the SVG is
     augment: str = ""  # any of "flip", "scale", "shift", comma-separated: mirrored / scaled / shifted pictures (data.augment)
     train_only: str = ""  # TRAIN_ONLY: "encoder" freezes the rest (the decoder the teacher's latents were fitted to)
     prior_components: int = DEFAULT_COMPONENTS  # Gaussians of the latent prior fitted at the end (fonts: 62)

@@ -187,7 +187,7 @@ def train_step(state: TrainState, ddp_model: torch.nn.Module, train_x: torch.Ten
     k = int(torch.randint(model_cfg.min_segments, model_cfg.max_segments + 1, (1,), generator=state.gen))
     x = augment_batch(train_x[idx].to(device).float() / 255, cfg.augment, state.gen)  # (B, 3, S, S)
     rec, kl, dec, mu = reconstruction_loss(ddp_model, x, k, sch["tau"], sample=True, supersample=cfg.supersample,
-                                         pyramid=cfg.pyramid)
+                                         pyramid=cfg.pyramid, solved=cfg.solved)
     loss = rec + sch["beta"] * kl
     taught = {} if z_fit is None else {"distill": distill_loss(mu, z_fit)}
     if state.outlines is not None:
@@ -213,7 +213,7 @@ def validate(state: TrainState, val_x: torch.Tensor, model_cfg: ModelConfig, cfg
     """The ``val`` event: ``evaluate_l2`` of the exported weights (with an EMA, the raw
     weights' figures are kept under ``raw_*``)."""
     val = lambda m: evaluate_l2(m, val_x, model_cfg.segments, cfg.tau_end,  # noqa: E731
-                                supersample=cfg.supersample, pyramid=cfg.pyramid)
+                                supersample=cfg.supersample, pyramid=cfg.pyramid, solved=cfg.solved)
     figures = val(state.model)
     if state.ema is not None:
         figures = {**figures, **{f"raw_{k}": v for k, v in figures.items()}, **val(state.exported)}
@@ -263,15 +263,13 @@ def train(
     """Train an Im2Vec model (or the ImageVAE baseline, ``model_cfg.arch``); returns the
     exported model folder ``RUN/model``.
 
-    Under ``torchrun`` (``WORLD_SIZE`` > 1) it runs DDP (gloo on CPU, nccl on CUDA); each
-    rank draws its own batches and only rank 0 writes files. ``images`` (uint8
-    ``(N, 3, S, S)``) bypasses the folder loading, for tests. ``epochs`` overrides
-    ``train_cfg.steps`` by passes over the training images. ``init_state`` (a state dict of
-    the same config) starts from trained weights with a fresh optimiser: fine-tuning.
-    ``minutes`` bounds the call (a training phase within a session): past it, the run stops
-    at the step it reached (``TimeUp``), checkpoints and exports; ``resume`` goes on.
-    A ``run_dir`` that holds a run is continued with ``resume`` or started over (its run
-    files removed, the folder's other files kept) with ``overwrite``; else it is refused.
+    Under ``torchrun`` (``WORLD_SIZE`` > 1) it runs DDP (gloo on CPU, nccl on CUDA); each rank draws its own
+    batches and only rank 0 writes files. ``images`` (uint8 ``(N, 3, S, S)``) bypasses the folder loading, for
+    tests. ``epochs`` overrides ``train_cfg.steps`` by passes over the training images. ``init_state`` (a state
+    dict of the same config) starts from trained weights with a fresh optimiser: fine-tuning. ``minutes`` bounds
+    the call (a training phase within a session): past it, the run stops at the step it reached (``TimeUp``),
+    checkpoints and exports; ``resume`` goes on. A ``run_dir`` that holds a run is continued with ``resume`` or
+    started over (its run files removed, the folder's other files kept) with ``overwrite``; else it is refused.
     """
     emit = on_event or (lambda e: None)
     deadline = math.inf if minutes is None else time.monotonic() + 60 * minutes
@@ -340,6 +338,8 @@ def _build(model_cfg: ModelConfig, cfg: TrainConfig, device: torch.device, init_
     for key in ("distill", "outline"):
         if getattr(cfg, key) > 0 and model_cfg.arch != "im2vec":
             raise Im2VecError(f"{key} > 0 trains the paths of an im2vec model; --arch {model_cfg.arch} has none")
+    if cfg.solved and not model_cfg.solve_colors:
+        raise Im2VecError("solved trains through the colour solve: it needs an im2vec model with solve_colors")
     torch.manual_seed(cfg.seed)
     try:
         model = build_model(model_cfg).to(device)

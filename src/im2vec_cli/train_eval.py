@@ -15,11 +15,11 @@ __all__ = ["evaluate_l2", "preview_grid"]
 
 @torch.no_grad()
 def evaluate_l2(model: Im2Vec, images: torch.Tensor, segments: int, tau: float, batch: int = 128,
-                supersample: int = 1, pyramid: str = "blur") -> dict[str, float]:
+                supersample: int = 1, pyramid: str = "blur", solved: bool = False) -> dict[str, float]:
     """Validation: pyramid L2 and plain MSE (paper Table 1) with ``z = mu``.
 
     ``images`` uint8 ``(N, 3, S, S)``; the MSE render uses exact "over" compositing, and
-    ``supersample`` and ``pyramid`` as the loss does.
+    ``supersample``, ``pyramid`` and ``solved`` as the loss does.
     """
     m = unwrap_model(model)
     was = m.training
@@ -29,7 +29,7 @@ def evaluate_l2(model: Im2Vec, images: torch.Tensor, segments: int, tau: float, 
     for i in range(0, len(images), batch):
         x = images[i : i + batch].to(dev).float() / 255
         loss, _, dec, _ = reconstruction_loss(m, x, segments, tau, sample=False, supersample=supersample,
-                                           pyramid=pyramid)
+                                           pyramid=pyramid, solved=solved)
         img = dec if m.raster_output else m.render(dec, tau=tau, composite="over", supersample=supersample)
         pyr += float(loss) * len(x)
         mse += float(((img - x) ** 2).mean()) * len(x)

@@ -9,10 +9,12 @@ import torch
 from im2vec_cli.config import MAX_FEEDBACK, ModelConfig, TrainConfig
 from im2vec_cli.distill import freeze
 from im2vec_cli.errors import Im2VecError, ModelError
+from im2vec_cli.model.losses import reconstruction_loss
 from im2vec_cli.model.pretrained import from_pretrained, grow_state, save_pretrained
-from im2vec_cli.model.vae import COLOR_TAU, FEEDBACK_TAU, Im2Vec
+from im2vec_cli.model.vae import COLOR_RIDGE, COLOR_TAU, FEEDBACK_TAU, Im2Vec
 from im2vec_cli.project import GUESS, LATENT, project_frames
-from im2vec_cli.raster import render_coverage
+from im2vec_cli.raster import gaussian_pyramid, pyramid_l2, render_coverage, render_pyramid, solve_colors, solve_order
+from im2vec_cli.train import _build
 from tests.helpers import descend
 
 TINY = dict(image_size=32, latent=16, enc_width=8, lstm_hidden=16, code=8, dec_width=16, dec_layers=3, deform_width=8,
@@ -159,3 +161,66 @@ def test_solved_colours_draw_closer_to_the_picture_outside_training_only():
     plain.train()
     torch.manual_seed(5)
     assert torch.equal(c, plain.decode(z, images=x).colors)
+
+
+def test_a_solved_loss_trains_the_shapes_through_the_colour_solve():
+    """``TrainConfig.solved``: in training too the colours are the solved ones, the loss renders
+    them "over" as the SVG does, and its gradient reaches the path pass through the solve."""
+    torch.manual_seed(6)
+    x = 1 - (1 - _bars()) * torch.tensor([0.1, 0.7, 0.9]).view(1, 3, 1, 1)
+    cfg = ModelConfig(grouping="layers", paths=3, path_passes=1, solve_colors=True, **TINY)
+    model = _moving(Im2Vec(cfg)).train()
+    torch.nn.init.normal_(model.path_pass.step[-1].weight, std=0.01)  # a pass that moves the paths
+    z = model.encode(x)[0]
+    torch.manual_seed(7)
+    code, depth, prior = model.path_state(z, x)  # training, not solved: the network's colours
+    torch.manual_seed(7)
+    solved = model.path_state(z, x, solve=True)[2]
+    cover = render_coverage(model.path_points(code, cfg.segments), size=32, tau=COLOR_TAU, samples=cfg.samples)
+    assert torch.allclose(solved, solve_colors(cover, depth, x, prior, COLOR_RIDGE), atol=1e-6)
+    assert not torch.allclose(solved, prior, atol=1e-3)
+    freeze(model, "path_pass")
+    torch.manual_seed(8)
+    loss = reconstruction_loss(model, x, cfg.segments, 0.5, sample=False, solved=True)[0]
+    torch.manual_seed(8)
+    by_hand = pyramid_l2(render_pyramid(*_drawn(model, z, x), size=32, levels=cfg.levels, tau=0.5, samples=cfg.samples,
+                                        composite="over"), gaussian_pyramid(x, cfg.levels))
+    assert torch.allclose(loss, by_hand, atol=1e-6)
+    loss.backward()
+    assert all(p.grad is not None and p.grad.abs().sum() > 0 for p in model.path_pass.parameters())
+    with pytest.raises(Im2VecError, match="solve_colors"):
+        _build(dataclasses.replace(cfg, solve_colors=False), TrainConfig(solved=True), torch.device("cpu"), None)
+
+
+def _drawn(model: Im2Vec, z: torch.Tensor, x: torch.Tensor):
+    dec = model.decode(z, images=x, solve=True)
+    return dec.points, dec.colors, dec.depth
+
+
+def test_a_solved_order_draws_no_farther_from_the_picture_outside_training_only():
+    """``solve_order``: the layers reordered (their depths' own values) as ``raster.solve_order``
+    finds from the network's order and colours; in training the network's order stays."""
+    torch.manual_seed(3)
+    x = 1 - (1 - _bars()) * torch.tensor([0.1, 0.7, 0.9]).view(1, 3, 1, 1)
+    cfg = ModelConfig(grouping="layers", paths=3, **TINY)
+    plain = _moving(Im2Vec(cfg), std=0.3).eval()
+    torch.nn.init.normal_(plain.decoder.net[-1].bias, std=0.3)  # overlapping paths: their order matters
+    colors, order = (Im2Vec(dataclasses.replace(cfg, solve_colors=True, solve_order=o)).eval() for o in (False, True))
+    colors.load_state_dict(plain.state_dict())
+    order.load_state_dict(plain.state_dict())
+    with torch.no_grad():
+        z = plain.encode(x)[0]
+        code, depth, prior = plain.path_state(z, x)
+        cover = render_coverage(plain.path_points(code, cfg.segments), size=32, tau=COLOR_TAU, samples=cfg.samples)
+        a, b = colors.decode(z, images=x), order.decode(z, images=x)
+        assert torch.equal(b.depth, solve_order(cover, depth, x, prior, COLOR_RIDGE))
+        assert torch.equal(a.points, b.points) and torch.equal(a.depth.sort(1).values, b.depth.sort(1).values)
+        assert (torch.argsort(a.depth, 1) != torch.argsort(b.depth, 1)).any(1).sum() >= 2  # pictures reordered
+        err = lambda d: (plain.render(d, tau=COLOR_TAU, composite="over") - x).pow(2).flatten(1).mean(1)  # noqa: E731
+        assert bool((err(b) <= err(a) + 1e-7).all()) and float(err(b).sum()) < float(err(a).sum())
+        order.train()
+        torch.manual_seed(10)
+        c = order.decode(z, images=x, solve=True)
+        colors.train()
+        torch.manual_seed(10)
+        assert torch.equal(c.depth, colors.decode(z, images=x, solve=True).depth)

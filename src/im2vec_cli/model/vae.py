@@ -10,7 +10,7 @@ from torch import nn
 
 from ..config import ModelConfig
 from ..options import GROUPINGS
-from ..raster import render_coverage, render_supersampled, solve_colors
+from ..raster import render_coverage, render_supersampled, solve_colors, solve_order
 from ..raster.bezier import flatten_closed, polygon_area
 from .decoder import PathCodes, PathDecoder
 from .encoder import Encoder, Feedback, PathPass, sample_latent
@@ -108,15 +108,16 @@ class Im2Vec(nn.Module):
         return (best if select else mu), logvar
 
     def decode(self, z: torch.Tensor, segments: int | torch.Tensor | None = None,
-               images: torch.Tensor | None = None) -> Decoded:
+               images: torch.Tensor | None = None, solve: bool = False) -> Decoded:
         """``z (B, D)`` -> closed cubic paths.
 
         ``segments``: k for every path (default ``config.segments``), or a ``(B, P)`` tensor of
         per-path counts (e.g. from ``choose_segments``), padded as described in ``Decoded``.
         ``images (B, C, S, S)``: the pictures ``z`` encodes, for the model's path passes
         (``config.path_passes``, ``_path_passes``); without them, the paths of ``z`` alone.
+        ``solve``: colours solved in training too (``path_state``).
         """
-        return self.draw(*self.path_state(z, images), segments)
+        return self.draw(*self.path_state(z, images, solve), segments)
 
     def draw(self, code: torch.Tensor, depth: torch.Tensor, color: torch.Tensor,
              segments: int | torch.Tensor | None = None) -> Decoded:
@@ -142,22 +143,27 @@ class Im2Vec(nn.Module):
                            torch.zeros(cfg.paths, dtype=torch.long, device=code.device), cfg.grouping, counts)
         return Decoded(pts, color, depth, None, "nonzero", counts)
 
-    def path_state(self, z: torch.Tensor, images: torch.Tensor | None = None
+    def path_state(self, z: torch.Tensor, images: torch.Tensor | None = None, solve: bool = False
                    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """``z (B, D)`` -> each path's code ``(B, P, C)``, depth ``(B, P)`` and colour ``(B, P, 3)``,
         corrected by the path passes when ``images`` are given (``decode``); with
-        ``config.solve_colors``, outside training, the colours then those whose render is closest
-        to the pictures (``raster.solve_colors``, the shapes and their order as drawn)."""
+        ``config.solve_colors``, outside training or with ``solve`` (``TrainConfig.solved``: the
+        loss differentiates through the solve), the colours then those whose render is closest to
+        the pictures (``raster.solve_colors``, the shapes as drawn); with ``config.solve_order``,
+        outside training, the layers' order first (``raster.solve_order``)."""
         code, depth, color, h = self.codes(z)  # (B, P, C), (B, P), (B, P, 3), (B, P, 2H)
         if self.palette.numel():
             # fixed palette (colour-segmented data): a soft choice among its colours
             color = torch.softmax(self.palette_logits(h), -1) @ self.palette.to(h.dtype)  # (B, P, 3)
         if images is not None and self.path_pass is not None:
             code, color = self._path_passes(images, code, depth, color)
-        if images is not None and self.config.solve_colors and not self.training:
+        if images is not None and self.config.solve_colors and (solve or not self.training):
             cover = render_coverage(self.path_points(code, self.config.segments), size=self.config.image_size,
-                                    tau=COLOR_TAU, samples=self.config.samples)  # (B, P, S, S)
-            color = solve_colors(cover.to(images.dtype), depth, images.expand(-1, 3, -1, -1), color, COLOR_RIDGE)
+                                    tau=COLOR_TAU, samples=self.config.samples).to(images.dtype)  # (B, P, S, S)
+            target = images.expand(-1, 3, -1, -1)
+            if self.config.solve_order and not self.training:
+                depth = solve_order(cover, depth, target, color, COLOR_RIDGE)
+            color = solve_colors(cover, depth, target, color, COLOR_RIDGE)
         return code, depth, color
 
     def _path_passes(self, images: torch.Tensor, code: torch.Tensor, depth: torch.Tensor,
@@ -231,10 +237,11 @@ class Im2Vec(nn.Module):
             fill_rule=dec.fill_rule, shape_index=dec.shape_index, samples=cfg.samples, composite=composite,
         )
 
-    def forward(self, images: torch.Tensor, segments: int | None = None, sample: bool = True):
-        """Reconstruct a batch. Returns ``(Decoded, mu, logvar)``; ``z = mu`` when not sampling."""
+    def forward(self, images: torch.Tensor, segments: int | None = None, sample: bool = True, solve: bool = False):
+        """Reconstruct a batch. Returns ``(Decoded, mu, logvar)``; ``z = mu`` when not sampling;
+        ``solve`` as ``decode`` takes it."""
         mu, logvar = self.encode(images)
-        return self.decode(sample_latent(mu, logvar, sample), segments, images), mu, logvar
+        return self.decode(sample_latent(mu, logvar, sample), segments, images, solve), mu, logvar
 
     @staticmethod
     def path_areas(points: torch.Tensor, samples: int = 8) -> torch.Tensor:
