@@ -36,7 +36,7 @@ def measure_segment_losses(model: Im2Vec, images: torch.Tensor, ks=SWEEP, batch:
     for i in range(0, len(images), batch):
         x = images[i : i + batch].to(dev)
         mu, _ = model.encode(x)
-        code = model.path_state(mu, x)[0].flatten(0, 1)  # (B*P, C), the path passes' codes as decoded
+        code = model.path_state(mu, x, colors=False)[0].flatten(0, 1)  # (B*P, C), the path passes' codes
         centre = model.centres.expand(len(x), -1, -1).flatten(0, 1)  # (B*P, 2)
         covs = []
         for k in ks:

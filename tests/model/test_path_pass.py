@@ -153,6 +153,7 @@ def test_solved_colours_draw_closer_to_the_picture_outside_training_only():
                                     - x).pow(2).mean())
         nudged = [b.colors + 0.05 * torch.randn_like(b.colors) for _ in range(8)]
         assert torch.equal(a.points, b.points)
+        assert all(torch.equal(u, v) for u, v in zip(solved.path_state(z, x, colors=False), plain.path_state(z, x)))
         assert err(b.colors) < 0.9 * err(a.colors)
         assert all(err(b.colors) <= err(c.clamp(0, 1)) for c in nudged)  # a least-squares minimum
     solved.train()

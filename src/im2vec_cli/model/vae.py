@@ -143,21 +143,22 @@ class Im2Vec(nn.Module):
                            torch.zeros(cfg.paths, dtype=torch.long, device=code.device), cfg.grouping, counts)
         return Decoded(pts, color, depth, None, "nonzero", counts)
 
-    def path_state(self, z: torch.Tensor, images: torch.Tensor | None = None, solve: bool = False
-                   ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    def path_state(self, z: torch.Tensor, images: torch.Tensor | None = None, solve: bool = False,
+                   colors: bool = True) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """``z (B, D)`` -> each path's code ``(B, P, C)``, depth ``(B, P)`` and colour ``(B, P, 3)``,
         corrected by the path passes when ``images`` are given (``decode``); with
         ``config.solve_colors``, outside training or with ``solve`` (``TrainConfig.solved``: the
         loss differentiates through the solve), the colours then those whose render is closest to
         the pictures (``raster.solve_colors``, the shapes as drawn); with ``config.solve_order``,
-        outside training, the layers' order first (``raster.solve_order``)."""
+        outside training, the layers' order first (``raster.solve_order``). ``colors=False`` skips
+        both solves, for callers that use the codes alone."""
         code, depth, color, h = self.codes(z)  # (B, P, C), (B, P), (B, P, 3), (B, P, 2H)
         if self.palette.numel():
             # fixed palette (colour-segmented data): a soft choice among its colours
             color = torch.softmax(self.palette_logits(h), -1) @ self.palette.to(h.dtype)  # (B, P, 3)
         if images is not None and self.path_pass is not None:
             code, color = self._path_passes(images, code, depth, color)
-        if images is not None and self.config.solve_colors and (solve or not self.training):
+        if images is not None and colors and self.config.solve_colors and (solve or not self.training):
             cover = render_coverage(self.path_points(code, self.config.segments), size=self.config.image_size,
                                     tau=COLOR_TAU, samples=self.config.samples).to(images.dtype)  # (B, P, S, S)
             target = images.expand(-1, 3, -1, -1)
@@ -218,7 +219,7 @@ class Im2Vec(nn.Module):
     def choose_segments(self, z: torch.Tensor, quality: float, images: torch.Tensor | None = None) -> torch.Tensor:
         """Per-path segment counts ``(B, P)`` for quality threshold ``quality`` (sec. 3.3), of the
         paths ``decode(z, ..., images)`` draws (with ``images``, the path passes' codes)."""
-        return self.code_segments(self.path_state(z, images)[0], quality)
+        return self.code_segments(self.path_state(z, images, colors=False)[0], quality)
 
     def code_segments(self, code: torch.Tensor, quality: float) -> torch.Tensor:
         """``choose_segments`` of the paths of codes ``(B, P, C)`` (``draw``)."""
