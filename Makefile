@@ -4,7 +4,7 @@ DATA ?= data
 PIP ?= .venv/bin/pip
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: install test test-slow fuzz lint train-fonts train-mnist train-emoji train-icons bench bench-cli bench-safety bench-hardening bench-realworld bench-morphs bench-sets bench-vectorize bench-outlines bench-folder results demo data-fonts data-mnist data-emoji data-icons clean
+.PHONY: install test test-slow fuzz lint train-fonts train-mnist train-emoji train-icons bench bench-cli bench-safety bench-hardening bench-realworld bench-morphs bench-sets bench-vectorize bench-outlines bench-solves bench-folder results demo data-fonts data-mnist data-emoji data-icons clean
 
 install: .venv/.installed
 
@@ -85,6 +85,11 @@ OUTLINES_ARGS ?= --markdown docs/OUTLINES.md  # e.g. OUTLINES_ARGS="--limit 20" 
 bench-outlines: bench-sets
 	$(PY) bench/outlines.py $(OUTLINES_ARGS)
 	$(PY) docs/make_outlines_figure.py
+
+# What the emoji model's colour and order solves cost and give on the 120 held-out OpenMoji faces,
+# the variants side by side in one run (docs/BENCHMARKS.md). About 3 minutes on one thread.
+bench-solves: bench-sets
+	$(PY) bench/solves.py
 
 # Folders at full quality (issue "batched refinement"): 1000 held-out glyphs (GNU FreeFont, Lato) in one
 # command, batched and in worker processes, against one image at a time (this code, and the commit before

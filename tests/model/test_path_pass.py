@@ -200,25 +200,27 @@ def _drawn(model: Im2Vec, z: torch.Tensor, x: torch.Tensor):
 
 def test_a_solved_order_draws_no_farther_from_the_picture_outside_training_only():
     """``solve_order``: the layers reordered (their depths' own values) as ``raster.solve_order``
-    finds from the network's order and colours; in training the network's order stays."""
+    finds from the network's order and colours; a picture drawn by the model's own paths in the
+    reverse order is drawn again; in training the network's order stays."""
     torch.manual_seed(3)
-    x = 1 - (1 - _bars()) * torch.tensor([0.1, 0.7, 0.9]).view(1, 3, 1, 1)
     cfg = ModelConfig(grouping="layers", paths=3, **TINY)
-    plain = _moving(Im2Vec(cfg), std=0.3).eval()
-    torch.nn.init.normal_(plain.decoder.net[-1].bias, std=0.3)  # overlapping paths: their order matters
+    plain = _moving(Im2Vec(cfg), std=1.0).eval()
+    torch.nn.init.normal_(plain.decoder.net[-1].bias, std=1.0)  # large overlapping paths: their order matters
     colors, order = (Im2Vec(dataclasses.replace(cfg, solve_colors=True, solve_order=o)).eval() for o in (False, True))
     colors.load_state_dict(plain.state_dict())
     order.load_state_dict(plain.state_dict())
     with torch.no_grad():
-        z = plain.encode(x)[0]
+        z = plain.encode(_bars())[0]
+        drawn = plain.decode(z)
+        hues = torch.tensor([[0.9, 0.2, 0.1], [0.1, 0.6, 0.2], [0.2, 0.3, 0.9]]).expand(4, -1, -1)
+        x = plain.render(dataclasses.replace(drawn, colors=hues, depth=-drawn.depth), tau=COLOR_TAU, composite="over")
         code, depth, prior = plain.path_state(z, x)
         cover = render_coverage(plain.path_points(code, cfg.segments), size=32, tau=COLOR_TAU, samples=cfg.samples)
         a, b = colors.decode(z, images=x), order.decode(z, images=x)
         assert torch.equal(b.depth, solve_order(cover, depth, x, prior, COLOR_RIDGE))
         assert torch.equal(a.points, b.points) and torch.equal(a.depth.sort(1).values, b.depth.sort(1).values)
-        assert (torch.argsort(a.depth, 1) != torch.argsort(b.depth, 1)).any(1).sum() >= 2  # pictures reordered
         err = lambda d: (plain.render(d, tau=COLOR_TAU, composite="over") - x).pow(2).flatten(1).mean(1)  # noqa: E731
-        assert bool((err(b) <= err(a) + 1e-7).all()) and float(err(b).sum()) < float(err(a).sum())
+        assert float(err(b).max()) < 0.1 * float(err(a).min())  # every picture drawn again, near exactly
         order.train()
         torch.manual_seed(10)
         c = order.decode(z, images=x, solve=True)
