@@ -106,6 +106,14 @@ def test_the_order_a_picture_was_composited_in_is_found_again():
     assert float(_error(cov, got, target).max()) < 1e-12 < float(_error(cov, wrong, target).min())
 
 
+def test_tied_depths_come_back_in_the_order_found():
+    cov, depth, truth = _layers(10, b=2, g=4)
+    target = composite_over(cov, truth, depth)
+    got = solve_order(cov, torch.zeros_like(depth), target, torch.full_like(truth, 0.5), ridge=1e-9)
+    assert torch.equal(torch.argsort(got, 1), torch.argsort(depth, 1))
+    assert bool((got.sort(1).values.diff(dim=1) > 0).all()) and float(got.abs().max()) < 1e-5  # ulps apart
+
+
 def test_the_order_found_is_never_worse_and_often_the_best_of_all():
     # against every one of the 4! orders, on pictures no order draws exactly (noise added)
     cov, depth, truth = _layers(7, b=6, g=4)

@@ -169,7 +169,8 @@ def solve_order(
     Args as ``solve_colors``.
 
     Returns:
-        ``(B, G)`` depths: ``depth``'s own values, reassigned to the layers in the order found.
+        ``(B, G)`` depths: ``depth``'s own values, reassigned to the layers in the order found
+        (tied values set a few ulps apart).
     """
     b, g = depth.shape
     values = depth.sort(1).values  # (B, G), back to front
@@ -191,7 +192,17 @@ def solve_order(
                     rank, best = torch.where(better[:, None], moved, rank), torch.where(better, err, best)
         if not kept:
             break
-    return torch.gather(values, 1, rank)
+    return torch.gather(_distinct(values), 1, rank)
+
+
+def _distinct(values: torch.Tensor) -> torch.Tensor:
+    """Sorted depths ``(B, G)`` made strictly increasing where they tie (a few ulps apart), so
+    the order found is the order drawn; distinct values are kept as they are."""
+    out = values.clone()
+    step = 4 * torch.finfo(values.dtype).eps * values.abs().amax(1).clamp_min(1)  # (B,)
+    for i in range(1, values.shape[1]):
+        out[:, i] = torch.maximum(out[:, i], out[:, i - 1] + step)
+    return out
 
 
 def _solved_error(coverage, depth, target, prior, ridge, background) -> torch.Tensor:
