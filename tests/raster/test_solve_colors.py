@@ -69,6 +69,10 @@ def test_bad_shapes_and_configs_are_refused():
         solve_colors(cov, depth, torch.rand(2, 3, 5, 5, dtype=torch.float64), prior)
     with pytest.raises(ValueError, match="ridge"):
         solve_colors(cov, depth, torch.rand(2, 3, 12, 12, dtype=torch.float64), prior, ridge=0.0)
+    with pytest.raises(ValueError, match="target"):
+        solve_order(cov, depth, torch.rand(2, 3, 5, 5, dtype=torch.float64), prior)
+    with pytest.raises(ValueError, match="ridge"):
+        solve_order(cov, depth, torch.rand(2, 3, 12, 12, dtype=torch.float64), prior, ridge=0.0)
     with pytest.raises(ConfigError, match="solve_colors"):
         ModelConfig(grouping="evenodd", solve_colors=True)
     with pytest.raises(ConfigError, match="solve_colors"):

@@ -123,14 +123,19 @@ def solve_colors(
     Returns:
         ``(B, G, 3)`` colours.
     """
+    _check_problem(coverage, depth, target, prior, ridge)
+    gram, cross, _ = _normal_equations(coverage, depth, target, background)
+    return _solved(gram, cross, prior, ridge * coverage[0, 0].numel()).to(prior.dtype)
+
+
+def _check_problem(coverage, depth, target, prior, ridge) -> None:
+    """The shapes and ridge ``solve_colors`` and ``solve_order`` take (a ``ValueError`` naming what is wrong)."""
     _check(coverage, prior, depth)
     if target.shape != (coverage.shape[0], 3, *coverage.shape[2:]):
         raise ValueError(f"target must be (B, 3, H, W) = {(coverage.shape[0], 3, *coverage.shape[2:])}, "
                          f"got {tuple(target.shape)}")
     if ridge <= 0:
         raise ValueError(f"ridge must be > 0, got {ridge}")
-    gram, cross, _ = _normal_equations(coverage, depth, target, background)
-    return _solved(gram, cross, prior, ridge * coverage[0, 0].numel()).to(prior.dtype)
 
 
 def _normal_equations(coverage: torch.Tensor, depth: torch.Tensor, target: torch.Tensor, background: float
@@ -172,7 +177,8 @@ def solve_order(
         ``(B, G)`` depths: ``depth``'s own values, reassigned to the layers in the order found
         (tied values set a few ulps apart).
     """
-    b, g = depth.shape
+    _check_problem(coverage, depth, target, prior, ridge)
+    g = depth.shape[1]
     values = depth.sort(1).values  # (B, G), back to front
     rank = torch.argsort(torch.argsort(depth, 1), 1)  # (B, G): each layer's position, 0 = back
     best = _solved_error(coverage, rank.to(coverage.dtype), target, prior, ridge, background)
