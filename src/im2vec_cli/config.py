@@ -173,6 +173,7 @@ class TrainConfig(JsonConfig):
     distill: float = 0.0  # > 0: weight of the encoder's squared distance to the fitted latents (distill.Teacher)
     distill_images: int = 4096  # training images whose latents the teacher fits (when distill > 0)
     outline: float = 0.0  # > 0: weight of the mean squared distance (px^2) of the traced outlines to the paths (outline_aux)
+    detail: float = 0.0  # > 0: the finest loss level weighs pixels by their picture's detail (raster.detail_weights)
     solved: bool = False  # the loss sees the colours solved (ModelConfig.solve_colors), composited "over" as the SVG is
     augment: str = ""  # any of "flip", "scale", "shift", comma-separated: mirrored / scaled / shifted pictures (data.augment)
     train_only: str = ""  # TRAIN_ONLY: "encoder" freezes the rest (the decoder the teacher's latents were fitted to)
@@ -194,7 +195,7 @@ class TrainConfig(JsonConfig):
             if getattr(self, key) < 1:
                 raise ConfigError(f"TrainConfig.{key} must be >= 1, got {getattr(self, key)}")
         for key in ("lr", "beta", "grad_clip", "lookahead_alpha", "tau_start", "tau_end", "lr_final", "val_fraction",
-                    "distill", "outline", "prior_shrink"):
+                    "distill", "outline", "prior_shrink", "detail"):
             v = getattr(self, key)
             if not (math.isfinite(v) and v >= 0):
                 raise ConfigError(f"TrainConfig.{key} must be a finite number >= 0, got {v}")

@@ -187,7 +187,7 @@ def train_step(state: TrainState, ddp_model: torch.nn.Module, train_x: torch.Ten
     k = int(torch.randint(model_cfg.min_segments, model_cfg.max_segments + 1, (1,), generator=state.gen))
     x = augment_batch(train_x[idx].to(device).float() / 255, cfg.augment, state.gen)  # (B, 3, S, S)
     rec, kl, dec, mu = reconstruction_loss(ddp_model, x, k, sch["tau"], sample=True, supersample=cfg.supersample,
-                                         pyramid=cfg.pyramid, solved=cfg.solved)
+                                         pyramid=cfg.pyramid, solved=cfg.solved, detail=cfg.detail)
     loss = rec + sch["beta"] * kl
     taught = {} if z_fit is None else {"distill": distill_loss(mu, z_fit)}
     if state.outlines is not None:
