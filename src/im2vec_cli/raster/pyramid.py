@@ -74,9 +74,8 @@ def detail_weights(img: torch.Tensor, strength: float) -> torch.Tensor:
     contrast = (img - local).abs().sum(1, keepdim=True)  # (B, 1, H, W)
     detail = F.max_pool2d(contrast, 3, stride=1, padding=1)  # (B, 1, H, W)
     mean = detail.mean((1, 2, 3), keepdim=True)  # (B, 1, 1, 1)
-    flat = mean <= 1e-6
-    w = (1 + strength * detail / torch.where(flat, torch.ones_like(mean), mean)) / (1 + strength)
-    return torch.where(flat, torch.ones_like(w), w)
+    w = (1 + strength * detail / mean.clamp_min(1e-6)) / (1 + strength)
+    return torch.where(mean <= 1e-6, torch.ones_like(w), w)  # a flat picture weighs 1
 
 
 def pyramid_l2(
