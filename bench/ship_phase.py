@@ -35,6 +35,9 @@ latents stay, and so do the priors.
     python bench/ship_phase.py RUN --path-passes 2 --set emoji --data DATA
     python bench/ship_phase.py --path-passes 3 --set emoji --data DATA
 
+``--point-passes N`` (with a RUN or alone, as ``--path-passes``) runs the model with N passes of
+its point pass (``ModelConfig.point_passes``, ``model.points.PointPass``).
+
 ``--solve-colors`` (with a RUN or alone, as ``--path-passes``) sets ``ModelConfig.solve_colors``: the
 layers' colours solved per picture by least squares once the shapes are drawn (a learned-colour
 ``layers`` model); the latents and priors stay.
@@ -79,6 +82,8 @@ def main():
                     help="With --feedback: keep per picture the pass whose render is closest (feedback_select).")
     ap.add_argument("--path-passes", type=int, choices=range(1, MAX_FEEDBACK + 1), metavar="N",
                     help="Run the phase's (no RUN: the shipped) model with this many path passes.")
+    ap.add_argument("--point-passes", type=int, choices=range(1, MAX_FEEDBACK + 1), metavar="N",
+                    help="Run the phase's (no RUN: the shipped) model with this many point passes.")
     ap.add_argument("--solve-colors", action="store_true",
                     help="Solve the layers' colours per picture (ModelConfig.solve_colors), with RUN or alone.")
     ap.add_argument("--solve-order", action="store_true",
@@ -93,14 +98,14 @@ def main():
     args = ap.parse_args()
     args.solve_colors = args.solve_colors or args.solve_order
     if args.run is not None and args.feedback is not None or args.run is None and not (
-            args.feedback or args.path_passes or args.solve_colors):
-        ap.error("give either a RUN folder or --feedback N (or --path-passes N or --solve-colors alone)")
+            args.feedback or args.path_passes or args.point_passes or args.solve_colors):
+        ap.error("give either a RUN folder or --feedback N (or --path-passes N, --point-passes N or --solve-colors alone)")
     if args.select and args.feedback is None:
         ap.error("--select goes with --feedback N")
     shipped = ROOT / "models" / args.name
     run = Path(args.run) if args.run else None
     scratch = run / "ship" if run else ROOT / "runs" / (f"ship-{args.name}-feedback{args.feedback}{'-select' * args.select}"
-                                                       f"-path{args.path_passes}{'-colors' * args.solve_colors}"
+                                                       f"-path{args.path_passes}-point{args.point_passes}{'-colors' * args.solve_colors}"
                                                        f"{'-order' * args.solve_order}")
     if scratch.exists():
         shutil.rmtree(scratch)
@@ -110,6 +115,10 @@ def main():
         step = exported["step"]
     elif run:
         _, step = export_checkpoint(run, scratch, half=stored_half(shipped))
+        if json.loads((run / "train_config.json").read_text()).get("train_only") in ("path_pass", "point_pass"):
+            for name in (PRIOR_CONFIG, PRIOR_WEIGHTS, NEIGHBOURS_CONFIG, NEIGHBOURS_WEIGHTS):  # the encoder is the
+                if (shipped / name).is_file():  # shipped one, so are its latents: its priors hold as they are
+                    shutil.copy2(shipped / name, scratch / name)
         near = shipped / NEIGHBOURS_CONFIG
         if near.is_file() and not (scratch / near.name).is_file():  # the run stopped before it fitted one
             from im2vec_cli.api import fit_neighbours
@@ -124,6 +133,10 @@ def main():
         step = _shipped_step(shipped)
     if args.path_passes:
         with_path_passes(scratch, args.path_passes)
+    if args.point_passes:
+        if not json.loads((scratch / "config.json").read_text()).get("point_passes"):
+            raise SystemExit(f"{scratch} has no point pass to apply again: train one first")
+        with_config(scratch, point_passes=args.point_passes)
     if args.solve_colors:
         with_config(scratch, solve_colors=True, solve_order=args.solve_order)
     test = eval_files(Path(args.data) / args.name, args.limit, 0)
@@ -137,7 +150,7 @@ def main():
     if better and not args.dry_run:
         ship(run, scratch, shipped, step, len(test), before, after, args.feedback, args.commit or _commit(),
              exported and exported.get("device", "GPU"), args.select, args.path_passes, args.solve_colors,
-             args.solve_order)
+             args.solve_order, args.point_passes)
         print(f"shipped into {shipped}: commit it")
 
 
@@ -196,7 +209,8 @@ def with_config(scratch: Path, **changes) -> None:
 
 def ship(run: Path | None, scratch: Path, shipped: Path, step: int, n_test: int, before: dict, after: dict,
          passes: int | None = None, commit: str = "unknown", device: str | None = None, select: bool = False,
-         path_passes: int | None = None, solve_colors: bool = False, solve_order: bool = False) -> None:
+         path_passes: int | None = None, solve_colors: bool = False, solve_order: bool = False,
+         point_passes: int | None = None) -> None:
     """``device``: the lent GPU the run trained on (bench/device_phases.py), if it did."""
     metrics = json.loads((shipped / "metrics.json").read_text())
     phase = metrics.get("earlier_phases", 0) + len(metrics.get("phases", [])) + 1  # earlier: before this script
@@ -210,7 +224,8 @@ def ship(run: Path | None, scratch: Path, shipped: Path, step: int, n_test: int,
              "steps": step, "steps_added": added, "of_steps": cfg.get("steps", step),
              "minutes": round(_minutes(events), 1), "run_started": started, "test_images": n_test,
              "before": before, "after": after, **({"feedback": passes, "select": select} if passes else {}),
-             **({"path_passes": path_passes} if path_passes else {}), **({"solve_colors": True} if solve_colors else {}),
+             **({"path_passes": path_passes} if path_passes else {}),
+             **({"point_passes": point_passes} if point_passes else {}), **({"solve_colors": True} if solve_colors else {}),
              **({"solve_order": True} if solve_order else {}),
              **({} if run else {"untrained": True}),
              **({"device": device} if device else {})}
@@ -249,6 +264,8 @@ def card_section(entry: dict, cfg: dict, events: list[dict]) -> str:
     head = [f"## Phase {entry['phase']} ({entry['date']}, code at {entry['commit']}): the shipped weights", ""]
     paths = (f" Run with {entry['path_passes']} passes of its path pass (`\"path_passes\": {entry['path_passes']}` "
              f"in config.json, `--path-passes {entry['path_passes']}`)." if entry.get("path_passes") else "")
+    paths += (f" Run with {entry['point_passes']} passes of its point pass (`\"point_passes\": {entry['point_passes']}` "
+              f"in config.json, `--point-passes {entry['point_passes']}`)." if entry.get("point_passes") else "")
     paths += (" Its layers' colours are solved per picture by least squares once the shapes are drawn "
               "(`\"solve_colors\": true` in config.json, `--solve-colors`; `raster.solve_colors`)."
               if entry.get("solve_colors") else "")
@@ -320,6 +337,7 @@ def training_with(training: dict, entry: dict) -> dict:
             ([f"{entry['feedback']} feedback passes at inference"] if "feedback" in entry else [])
             + (["the closest kept per picture"] if entry.get("select") else [])
             + ([f"{entry['path_passes']} path passes"] if entry.get("path_passes") else [])
+            + ([f"{entry['point_passes']} point passes"] if entry.get("point_passes") else [])
             + (["colours solved per picture"] if entry.get("solve_colors") else [])
             + (["the layers' order searched per picture"] if entry.get("solve_order") else []) + ["no training"]))
         return {**training, "phases": "; ".join(x for x in (training.get("phases"), how) if x)}

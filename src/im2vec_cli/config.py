@@ -21,7 +21,7 @@ FORMAT_VERSION = 1
 # path wound the other way inside another cuts a hole, as in font outlines); "layers": one coloured shape
 # per path, composited by depth.
 PYRAMID_MODES = ("blur", "render")  # TrainConfig.pyramid: the coarse levels of the loss (raster.render_pyramid)
-TRAIN_ONLY = ("", "encoder", "path_pass")  # TrainConfig.train_only: every weight, or one module's alone (the rest frozen)
+TRAIN_ONLY = ("", "encoder", "path_pass", "point_pass")  # TrainConfig.train_only: every weight, or one module's alone (the rest frozen)
 DEFAULT_COMPONENTS = 10  # Gaussians of a fitted latent prior (model.prior): chosen by the samples' precision/recall on MNIST
 DEFAULT_NEIGHBOURS = 8  # nearest training latents a neighbour prior steps towards (model.prior.NeighbourPrior)
 DEFAULT_SHRINK = 1e-4  # added to each of its covariances' diagonal, in units of the latents' mean variance
@@ -117,6 +117,9 @@ class ModelConfig(JsonConfig):
     feedback_select: bool = False  # at inference, keep per picture the pass whose render is closest to it (one render more)
     path_passes: int = 0  # render-and-compare passes correcting each path's code and colour (model.encoder.PathPass), 0 to MAX_FEEDBACK
     path_pass_width: int = 16  # first conv width of the path pass (a multiple of 8)
+    point_passes: int = 0  # render-and-compare passes moving each path's outline across and along itself (model.points), 0 to MAX_FEEDBACK
+    point_pass_width: int = 64  # channels of the point pass's circular convolutions
+    point_smooth: int = 0  # [1, 2, 1] / 4 filters the point pass's moves go through along the outline (model.points)
     solve_colors: bool = False  # at inference, given the picture, the layers' colours by least squares (raster.solve_colors)
     solve_order: bool = False  # ...and before that their order, searched by the solved render's error (raster.solve_order)
     segment_predictor: int = 0  # hidden width of the segment-count MLP (sec. 3.3); 0: none (`im2vec train-aux` adds it)
@@ -126,7 +129,8 @@ class ModelConfig(JsonConfig):
         at_least = {"image_size": 8, "channels": 1, "latent": 1, "paths": 1, "enc_width": 8, "lstm_hidden": 1,
                     "code": 1, "dec_width": 1, "dec_layers": 1, "deform_width": 1, "segments": 1, "min_segments": 1,
                     "max_segments": 1, "samples": 1, "levels": 1, "segment_predictor": 0, "feedback": 0,
-                    "path_passes": 0, "path_pass_width": 8}
+                    "path_passes": 0, "path_pass_width": 8, "point_passes": 0, "point_pass_width": 1,
+                    "point_smooth": 0}
         for key, low in at_least.items():
             if getattr(self, key) < low:
                 raise ConfigError(f"ModelConfig.{key} must be >= {low}, got {getattr(self, key)}")
@@ -136,6 +140,8 @@ class ModelConfig(JsonConfig):
         if self.path_passes > MAX_FEEDBACK or self.path_pass_width % 8:
             raise ConfigError(f"ModelConfig.path_passes must be <= {MAX_FEEDBACK} and path_pass_width a multiple of 8, "
                               f"got {self.path_passes} and {self.path_pass_width}")
+        if self.point_passes > MAX_FEEDBACK:
+            raise ConfigError(f"ModelConfig.point_passes must be <= {MAX_FEEDBACK}, got {self.point_passes}")
         if self.feedback_paths and not self.feedback:
             raise ConfigError("ModelConfig.feedback_paths needs feedback >= 1 (it adds inputs to the feedback pass)")
         if self.feedback_select and not self.feedback:

@@ -117,7 +117,7 @@ def vectorize(model: Im2Vec, images: list[torch.Tensor], *, segments: int | str 
         xs, places = zip(*(model_input(model, images[i]) for i in todo))
         x = torch.stack(xs).to(dev)
         code, depth, color = model.path_state(model.encode(x)[0], x)  # the path passes run once
-        dec = model.draw(code, depth, color, segment_counts(model, code, segments, quality))
+        dec = model.draw(code, depth, color, segment_counts(model, code, segments, quality), x)
         for j, (i, p) in enumerate(zip(todo, places)):
             vec = resolve_overlaps(to_vector(dec, j, p, max_paths=max_paths), images[i])
             out[i] = clean_guess(vec, p, model.config.image_size) if clean else vec

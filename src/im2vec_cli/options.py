@@ -20,7 +20,8 @@ ARCHS = ("im2vec", "imagevae")  # ModelConfig.arch: the vector model, or the pap
 FITS = ("resize", "pad")  # ModelConfig.fit: how an image smaller than the model square meets it
 AUGMENTS = ("flip", "scale", "shift")  # TrainConfig.augment: the kinds it may name, comma-separated (data.augment)
 GROWABLE = ("paths", "grouping", "palette", "feedback", "feedback_paths", "feedback_select", "path_passes",
-            "path_pass_width", "solve_colors", "solve_order")  # ModelConfig keys a fine-tune (`train --init`) may change
+            "path_pass_width", "point_passes", "point_pass_width", "point_smooth", "solve_colors",
+            "solve_order")  # ModelConfig keys a fine-tune (`train --init`) may change
 
 
 def parse_augment(spec: str) -> tuple[str, ...]:

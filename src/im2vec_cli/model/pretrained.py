@@ -17,6 +17,7 @@ from ..files import atomic_write, holds_files, replace_folder
 from ..options import GROWABLE
 from . import build_model
 from .encoder import Feedback, PathPass
+from .points import PointPass
 from .prior import NEIGHBOURS_CONFIG, NEIGHBOURS_WEIGHTS, LatentPrior, NeighbourPrior
 
 REPO_MODELS = Path(__file__).resolve().parents[3] / "models"
@@ -200,7 +201,8 @@ def grow_state(state: dict[str, torch.Tensor], old: ModelConfig, new: ModelConfi
     ``palette_logits`` go, and the colour head ``codes.color``, which a palette model carries
     untrained, learns. A feedback pass (``feedback``) added starts from fresh weights whose
     step is zero (``Feedback``), so the grown model encodes what ``old`` did; one removed is
-    dropped; so is a path pass (``path_passes``, ``PathPass``: its last layer starts at zero).
+    dropped; so is a path pass (``path_passes``, ``PathPass``: its last layer starts at zero), and a
+    point pass (``point_passes``, ``PointPass``, likewise).
     The per-path inputs of ``feedback_paths`` added to a feedback pass (or new paths'
     ones) start with zero weights in its first layer, so they too change nothing at first.
     Every other tensor has the same shape in both configs and is copied.
@@ -215,11 +217,17 @@ def grow_state(state: dict[str, torch.Tensor], old: ModelConfig, new: ModelConfi
         raise ModelError("a fine-tune can drop a model's palette (learn colours), not give it another one")
     if old.path_passes and new.path_passes and old.path_pass_width != new.path_pass_width:
         raise ModelError("path_pass_width can change only where the path pass is added (the model has none)")
+    if old.point_passes and new.point_passes and old.point_pass_width != new.point_pass_width:
+        raise ModelError("point_pass_width can change only where the point pass is added (the model has none)")
     out = {k: v for k, v in state.items() if (new.palette or not k.startswith("palette_logits."))
-           and (new.feedback or not k.startswith("feedback.")) and (new.path_passes or not k.startswith("path_pass."))}
+           and (new.feedback or not k.startswith("feedback.")) and (new.path_passes or not k.startswith("path_pass."))
+           and (new.point_passes or not k.startswith("point_pass."))}
     if new.path_passes and not old.path_passes:
         out.update(_fresh("path_pass", seed, lambda: PathPass(new.image_size, new.channels, new.code,
                                                                new.path_pass_width)))
+    if new.point_passes and not old.point_passes:
+        out.update(_fresh("point_pass", seed, lambda: PointPass(new.channels, new.point_pass_width,
+                                                                         smooth=new.point_smooth)))
     if new.feedback and not old.feedback:
         out.update(_fresh("feedback", seed, lambda: Feedback(new.image_size, new.channels, new.latent, new.enc_width,
                                                               new.paths if new.feedback_paths else 0)))

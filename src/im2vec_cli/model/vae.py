@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -14,6 +15,7 @@ from ..raster import render_coverage, render_supersampled, solve_colors, solve_o
 from ..raster.bezier import flatten_closed, polygon_area
 from .decoder import PathCodes, PathDecoder
 from .encoder import Encoder, Feedback, PathPass, sample_latent
+from .points import PointPass
 from .segments import SegmentPredictor, choose_segments
 
 FEEDBACK_TAU = 0.4  # edge softness (px) of the renders a feedback pass sees: trained models depend on it
@@ -70,6 +72,8 @@ class Im2Vec(nn.Module):
                                   config.paths if config.feedback_paths else 0) if config.feedback else None)
         self.path_pass = (PathPass(config.image_size, config.channels, config.code, config.path_pass_width)
                           if config.path_passes else None)
+        self.point_pass = (PointPass(config.channels, config.point_pass_width, smooth=config.point_smooth)
+                           if config.point_passes else None)
         self.codes = PathCodes(config.latent, config.lstm_hidden, config.code, config.paths)
         self.decoder = PathDecoder(config.code, config.dec_width, config.dec_layers, config.deform, config.deform_width)
         # Distinct start positions: identical initial circles would cancel under even-odd.
@@ -115,14 +119,17 @@ class Im2Vec(nn.Module):
         per-path counts (e.g. from ``choose_segments``), padded as described in ``Decoded``.
         ``images (B, C, S, S)``: the pictures ``z`` encodes, for the model's path passes
         (``config.path_passes``, ``_path_passes``); without them, the paths of ``z`` alone.
+        and the point passes (``config.point_passes``, ``draw``); without them, the paths of ``z`` alone.
         ``solve``: colours solved in training too (``path_state``).
         """
-        return self.draw(*self.path_state(z, images, solve), segments)
+        return self.draw(*self.path_state(z, images, solve), segments, images)
 
     def draw(self, code: torch.Tensor, depth: torch.Tensor, color: torch.Tensor,
-             segments: int | torch.Tensor | None = None) -> Decoded:
+             segments: int | torch.Tensor | None = None, images: torch.Tensor | None = None) -> Decoded:
         """Each path's code ``(B, P, C)``, depth ``(B, P)`` and colour ``(B, P, 3)`` (``path_state``)
-        -> closed cubic paths, grouped as ``config.grouping`` says; ``segments`` as ``decode`` takes it."""
+        -> closed cubic paths, grouped as ``config.grouping`` says; ``segments`` as ``decode`` takes it.
+        With ``images (B, C, S, S)``, the pictures they were drawn for, the paths' outlines are then
+        moved by the model's point passes (``config.point_passes``, ``_point_passes``)."""
         cfg = self.config
         b = code.shape[0]
         counts = None
@@ -139,9 +146,47 @@ class Im2Vec(nn.Module):
             pts = self.path_points(code, k)  # (B, P, 3k, 2)
         if cfg.grouping in ("evenodd", "nonzero"):
             # one shape, all paths under that fill rule: its colour is the mean of the path colours
-            return Decoded(pts, color.mean(1, keepdim=True), depth.new_zeros(b, 1),
-                           torch.zeros(cfg.paths, dtype=torch.long, device=code.device), cfg.grouping, counts)
-        return Decoded(pts, color, depth, None, "nonzero", counts)
+            dec = Decoded(pts, color.mean(1, keepdim=True), depth.new_zeros(b, 1),
+                          torch.zeros(cfg.paths, dtype=torch.long, device=code.device), cfg.grouping, counts)
+        else:
+            dec = Decoded(pts, color, depth, None, "nonzero", counts)
+        return self._point_passes(images, dec) if images is not None and self.point_pass is not None else dec
+
+    def _point_passes(self, images: torch.Tensor, dec: Decoded) -> Decoded:
+        """``config.point_passes`` passes of ``PointPass`` on the outlines of ``dec``, drawn for
+        ``images (B, C, S, S)``, each seeing the render of the last (``_look``); a path of fewer
+        segments than ``dec``'s widest is moved alone and padded again (``Decoded``). With
+        ``config.feedback_select``, outside training, per picture the pass (or the start) whose
+        render is closest to it, as ``encode`` chooses; with ``config.solve_colors``, outside training,
+        the colours then solved again for the outlines as moved (``path_state``)."""
+        cfg = self.config
+        select = cfg.feedback_select and not self.training
+        b, p, m, _ = dec.points.shape
+        rows = torch.arange(b, device=images.device).repeat_interleave(p)  # (B*P,) picture of each path
+        counts = (dec.counts.flatten() if dec.counts is not None
+                  else torch.full((b * p,), m // 3, dtype=torch.long, device=images.device))
+        best, best_err = dec.points, images.new_full((b,), math.inf)
+        for i in range(cfg.point_passes + select):
+            with torch.no_grad():
+                seen = self._look(dec, images, False)[0]
+            if select:
+                better, best_err = _closer(seen, images, best_err)
+                best = torch.where(better[:, None, None, None], dec.points, best)
+            if i == cfg.point_passes:
+                break
+            flat = dec.points.flatten(0, 1)  # (B*P, 3K, 2)
+            moved = flat.clone()
+            for k in counts.unique().tolist():
+                sel = counts == k
+                out = self.point_pass(images, seen, flat[sel, : 3 * k], rows[sel])  # (n, 3k, 2)
+                moved[sel] = torch.cat([out, out[:, :1].expand(-1, m - 3 * k, -1)], 1)
+            dec = dataclasses.replace(dec, points=moved.view(b, p, m, 2))
+        dec = dataclasses.replace(dec, points=best) if select else dec
+        if cfg.solve_colors and not self.training:  # the colours solved again for the outlines as moved
+            cover = render_coverage(dec.points, size=cfg.image_size, tau=COLOR_TAU, samples=cfg.samples).to(images.dtype)
+            dec = dataclasses.replace(dec, colors=solve_colors(cover, dec.depth, images.expand(-1, 3, -1, -1),
+                                                               dec.colors, COLOR_RIDGE))
+        return dec
 
     def path_state(self, z: torch.Tensor, images: torch.Tensor | None = None, solve: bool = False,
                    colors: bool = True) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
