@@ -7,8 +7,9 @@ at the model's size, one loss per picture (a picture's fit is its own), in three
 
 1. the latent ``z`` (``latent_steps``): the shapes stay on the model's manifold;
 2. the per-path codes (``code_steps``): the LSTM bypassed, the path decoder kept;
-3. the control points (``point_steps``): offsets from the decoded paths, and the colours
-   of a learned-colour model.
+3. the control points (``point_steps``): offsets from the decoded paths (moved by the model's
+   point passes, ``ModelConfig.point_passes``, where it has them), and the colours of a
+   learned-colour model.
 
 Each stage keeps each picture's best step. On the 24 glyphs of held-out faces of
 ``bench/morphs.py`` the IoU@4x of their clean outlines against the true outlines is 0.913
@@ -56,7 +57,9 @@ class ProjectSettings:
     code_lr: float = 0.02
     point_lr: float = 1.5e-3  # normalised units per step: 0.1 px on a 64 px canvas
     color_lr: float = 0.02
-    tau: float = 0.5  # edge softness of the render, in model pixels
+    tau: float | None = None  # edge softness of the render in model pixels; None: 0.5 at 64 px, scaled with the
+    # model's size (MNIST's 32 px model: 0.25, its training softness; at 0.5 its 64 test digits fitted to 0.00140,
+    # from the guess's 0.00064, at 0.25 to 0.00049: fitted to a softer edge than the SVG draws, the paths were drawn off it)
 
 
 GUESS = ProjectSettings(latent_steps=0, code_steps=0, point_steps=0)
@@ -164,26 +167,29 @@ def project_frames(model: Im2Vec, x: torch.Tensor, settings: ProjectSettings = P
 def _fit(model: Im2Vec, x: torch.Tensor, s: ProjectSettings, segments: int | None) -> Projection:
     target = gaussian_pyramid(x, 1)
     k = segments or model.config.segments
+    tau = s.tau if s.tau is not None else 0.5 * model.config.image_size / 64
     with torch.no_grad():
         z = model.encode(x)[0]
     if s.latent_steps:
-        z = _adam(model, target, [z], [s.latent_lr], lambda z: model.decode(z, k), s.latent_steps, s.tau)[0]
+        z = _adam(model, target, [z], [s.latent_lr], lambda z: model.decode(z, k), s.latent_steps, tau)[0]
     with torch.no_grad():
         # from the encoder's guess, the model's path passes (if any) correct the codes; not a fitted latent's
         code, depth, color = model.path_state(z, None if s.latent_steps else x)  # (N, P, C), (N, P), (N, P, 3)
         base = model.draw(code, depth, color, k)
     if s.code_steps:
         code = _adam(model, target, [code], [s.code_lr], lambda c: _with_points(base, model.path_points(c, k)),
-                     s.code_steps, s.tau)[0]
+                     s.code_steps, tau)[0]
     with torch.no_grad():
         points = model.path_points(code, k)  # (N, P, 3k, 2)
+        if model.point_pass is not None:  # the model's point passes move those outlines, from the pictures
+            points = model.draw(code, depth, color, k, x).points
     colors = base.colors
     if s.point_steps:
         learn = not model.palette.numel()
         params, lrs = [torch.zeros_like(points)] + ([colors] if learn else []), [s.point_lr, s.color_lr]
         got = _adam(model, target, params, lrs[: len(params)],
                     lambda off, *c: _with_points(base, points + off, c[0].clamp(0, 1) if c else None),
-                    s.point_steps, s.tau)
+                    s.point_steps, tau)
         points, colors = points + got[0], got[1].clamp(0, 1) if learn else colors
     return Projection(z, _with_points(base, points, colors))
 

@@ -196,3 +196,20 @@ def test_smoothing_low_passes_the_moves_along_the_outline():
     want = sum(w[i] * across(a).roll(2 - i, 1) for i in range(5))
     assert torch.allclose(across(b), want, atol=1e-12)
     assert torch.allclose(across(b).mean(1), across(a).mean(1), atol=1e-12)
+
+
+def test_the_fitted_projection_starts_its_point_stage_from_the_moved_outlines():
+    """``project``'s point stage keeps each picture's best step from its start, and that start is
+    the outlines as the point passes moved them: with no point steps, exactly those."""
+    from im2vec_cli.project import ProjectSettings, project_frames
+
+    torch.manual_seed(7)
+    model = Im2Vec(ModelConfig(paths=2, point_passes=1, **TINY)).eval()
+    torch.nn.init.normal_(model.decoder.net[-1].weight, std=0.05)
+    torch.nn.init.normal_(model.point_pass.net[-1].weight, std=0.5)
+    x = _bars()
+    with torch.no_grad():
+        want = model.decode(model.encode(x)[0], None, x).points
+    got = project_frames(model, x, ProjectSettings(latent_steps=0, code_steps=1, point_steps=0))  # one step: its start
+    assert torch.allclose(got.decoded.points, want, atol=1e-6)
+    assert not torch.allclose(want, model.decode(model.encode(x)[0]).points, atol=1e-4)
