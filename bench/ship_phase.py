@@ -44,6 +44,9 @@ layers' colours solved per picture by least squares once the shapes are drawn (a
 
     python bench/ship_phase.py --path-passes 4 --solve-colors --set emoji --data DATA
 
+``--raw`` ships a run's trained weights rather than their EMA, for a run too short for the
+average to catch up (its validation's ``raw_val_*`` figures say which is closer).
+
 ``--solve-order`` (implies ``--solve-colors``) sets ``ModelConfig.solve_order`` too: before the
 colours, the layers' order is searched per picture by its solved render's error.
 """
@@ -88,6 +91,8 @@ def main():
                     help="Solve the layers' colours per picture (ModelConfig.solve_colors), with RUN or alone.")
     ap.add_argument("--solve-order", action="store_true",
                     help="Search the layers' order per picture too (ModelConfig.solve_order; implies --solve-colors).")
+    ap.add_argument("--raw", action="store_true",
+                    help="Export the run's trained weights, not its EMA (a short run whose average lags).")
     ap.add_argument("--set", required=True, dest="name")
     ap.add_argument("--data", required=True)
     ap.add_argument("--limit", type=int, default=1000)
@@ -114,7 +119,7 @@ def main():
         shutil.copytree(run / "exported", scratch)  # came back
         step = exported["step"]
     elif run:
-        _, step = export_checkpoint(run, scratch, half=stored_half(shipped))
+        _, step = export_checkpoint(run, scratch, half=stored_half(shipped), raw=args.raw)
         if json.loads((run / "train_config.json").read_text()).get("train_only") in ("path_pass", "point_pass"):
             for name in (PRIOR_CONFIG, PRIOR_WEIGHTS, NEIGHBOURS_CONFIG, NEIGHBOURS_WEIGHTS):  # the encoder is the
                 if (shipped / name).is_file():  # shipped one, so are its latents: its priors hold as they are
@@ -150,7 +155,7 @@ def main():
     if better and not args.dry_run:
         ship(run, scratch, shipped, step, len(test), before, after, args.feedback, args.commit or _commit(),
              exported and exported.get("device", "GPU"), args.select, args.path_passes, args.solve_colors,
-             args.solve_order, args.point_passes)
+             args.solve_order, args.point_passes, args.raw)
         print(f"shipped into {shipped}: commit it")
 
 
@@ -210,7 +215,7 @@ def with_config(scratch: Path, **changes) -> None:
 def ship(run: Path | None, scratch: Path, shipped: Path, step: int, n_test: int, before: dict, after: dict,
          passes: int | None = None, commit: str = "unknown", device: str | None = None, select: bool = False,
          path_passes: int | None = None, solve_colors: bool = False, solve_order: bool = False,
-         point_passes: int | None = None) -> None:
+         point_passes: int | None = None, raw: bool = False) -> None:
     """``device``: the lent GPU the run trained on (bench/device_phases.py), if it did."""
     metrics = json.loads((shipped / "metrics.json").read_text())
     phase = metrics.get("earlier_phases", 0) + len(metrics.get("phases", [])) + 1  # earlier: before this script
@@ -225,7 +230,8 @@ def ship(run: Path | None, scratch: Path, shipped: Path, step: int, n_test: int,
              "minutes": round(_minutes(events), 1), "run_started": started, "test_images": n_test,
              "before": before, "after": after, **({"feedback": passes, "select": select} if passes else {}),
              **({"path_passes": path_passes} if path_passes else {}),
-             **({"point_passes": point_passes} if point_passes else {}), **({"solve_colors": True} if solve_colors else {}),
+             **({"point_passes": point_passes} if point_passes else {}), **({"raw_weights": True} if raw else {}),
+             **({"solve_colors": True} if solve_colors else {}),
              **({"solve_order": True} if solve_order else {}),
              **({} if run else {"untrained": True}),
              **({"device": device} if device else {})}
@@ -266,6 +272,8 @@ def card_section(entry: dict, cfg: dict, events: list[dict]) -> str:
              f"in config.json, `--path-passes {entry['path_passes']}`)." if entry.get("path_passes") else "")
     paths += (f" Run with {entry['point_passes']} passes of its point pass (`\"point_passes\": {entry['point_passes']}` "
               f"in config.json, `--point-passes {entry['point_passes']}`)." if entry.get("point_passes") else "")
+    paths += (" The run's trained weights are shipped, not their EMA (`--raw`: the average of a run this short "
+              "still lags them; the curve's raw columns)." if entry.get("raw_weights") else "")
     paths += (" Its layers' colours are solved per picture by least squares once the shapes are drawn "
               "(`\"solve_colors\": true` in config.json, `--solve-colors`; `raster.solve_colors`)."
               if entry.get("solve_colors") else "")
@@ -294,12 +302,13 @@ def card_section(entry: dict, cfg: dict, events: list[dict]) -> str:
              f"{entry['minutes']} min" + ("" if "device" in entry else " on this machine") + "." + paths + " With", "",
              "```json", json.dumps({k: v for k, v in cfg.items() if k not in ("class_name", "format_version")}),
              "```", "", *_figures(b, a, entry["test_images"]), "", "Validation (the run's `metrics.jsonl`):", "",
-             "| step | min | val pyramid L2 | val MSE |", "|---|---|---|---|"]
+             "| step | min | val pyramid L2 | val MSE | raw val MSE |", "|---|---|---|---|---|"]
     val = [e for e in events if e["event"] == "val"]
     t0 = min(e["time"] for e in events if "time" in e)
     rows = sorted({round(i * (len(val) - 1) / (CURVE_ROWS - 1)) for i in range(CURVE_ROWS)}) if val else []
     for e in (val[i] for i in rows):
-        lines.append(f"| {e['step']} | {(e['time'] - t0) / 60:.0f} | {e['val_pyramid_l2']:.4g} | {e['val_mse']:.4g} |")
+        raw = f"{e['raw_val_mse']:.4g}" if "raw_val_mse" in e else "–"
+        lines.append(f"| {e['step']} | {(e['time'] - t0) / 60:.0f} | {e['val_pyramid_l2']:.4g} | {e['val_mse']:.4g} | {raw} |")
     return "\n".join(lines)
 
 

@@ -94,7 +94,11 @@ def test_path_passes_alone_or_after_a_run_say_so_on_the_card(tmp_path):
     run = {**entry, "untrained": False, "steps_added": 500, "minutes": 20.0}
     trained = card_section(run, {"lr": 5e-4}, [{"event": "val", "step": 500, "time": 1.0, "val_pyramid_l2": 0.03,
                                                 "val_mse": 0.02}])
-    assert "Run with 3 passes of its path pass" in trained and "| 500 | 0 | 0.03 | 0.02 |" in trained
+    assert "Run with 3 passes of its path pass" in trained and "| 500 | 0 | 0.03 | 0.02 | – |" in trained
+    raw = card_section({**run, "raw_weights": True}, {}, [{"event": "val", "step": 500, "time": 1.0,
+                                                           "val_pyramid_l2": 0.03, "val_mse": 0.02, "raw_val_mse": 0.01}])
+    assert "trained weights are shipped, not their EMA" in raw and "| 500 | 0 | 0.03 | 0.02 | 0.01 |" in raw
+    assert "not their EMA" not in trained
     (tmp_path / "config.json").write_text(ModelConfig(path_passes=1).to_json())
     with_path_passes(tmp_path, 2)
     assert ModelConfig.load(tmp_path / "config.json").path_passes == 2

@@ -121,6 +121,8 @@ def test_ema_resumes_exactly_and_is_exported(tmp_path, shapes):
     assert torch.allclose(exported, avg)
     again, step = export_checkpoint(straight, tmp_path / "exp")
     assert step == 6 and torch.allclose(from_pretrained(again).state_dict()[name], avg)
+    trained, _ = export_checkpoint(straight, tmp_path / "raw", raw=True)  # ship_phase.py --raw
+    assert torch.allclose(from_pretrained(trained).state_dict()[name], raw)
     val = [json.loads(x) for x in (straight / "metrics.jsonl").read_text().splitlines() if '"val"' in x][-1]
     assert val["val_mse"] != val["raw_val_mse"]
     with pytest.raises(Im2VecError, match="ema"):

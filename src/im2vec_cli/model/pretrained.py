@@ -147,10 +147,11 @@ def stored_half(name_or_dir: str | os.PathLike) -> bool:
 
 
 def export_checkpoint(run_dir: str | Path, out_dir: str | Path, *, half: bool = False,
-                      overwrite: bool = False) -> tuple[Path, int]:
+                      overwrite: bool = False, raw: bool = False) -> tuple[Path, int]:
     """Export the model of a run's ``checkpoint.pt`` as a ``from_pretrained`` folder, with the
     run's latent priors when they were fitted to this checkpoint's weights (a run stopped early has
-    none: ``im2vec fit-prior`` fits them).
+    none: ``im2vec fit-prior`` fits them). A run with a weight EMA exports the averaged weights, or
+    with ``raw`` the trained ones (a short run whose average still lags: its ``raw_val_*`` figures).
 
     ``out_dir`` is made whole (``files.replace_folder``): a folder that holds files is replaced
     only with ``overwrite``, and never one that holds the run.
@@ -160,7 +161,7 @@ def export_checkpoint(run_dir: str | Path, out_dir: str | Path, *, half: bool = 
     check_output_folder(out_dir, overwrite, run_dir)
     state = load_checkpoint(Path(run_dir) / "checkpoint.pt")
     model = build_model(ModelConfig.from_dict(state["model_config"]))
-    if state.get("ema") is not None:  # a run with TrainConfig.ema exports the averaged weights
+    if state.get("ema") is not None and not raw:  # a run with TrainConfig.ema exports the averaged weights
         from torch.optim.swa_utils import AveragedModel
 
         averaged = AveragedModel(model, use_buffers=True)
