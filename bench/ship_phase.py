@@ -139,9 +139,7 @@ def main():
     if args.path_passes:
         with_path_passes(scratch, args.path_passes)
     if args.point_passes:
-        if not json.loads((scratch / "config.json").read_text()).get("point_passes"):
-            raise SystemExit(f"{scratch} has no point pass to apply again: train one first")
-        with_config(scratch, point_passes=args.point_passes)
+        with_path_passes(scratch, args.point_passes, "point")
     if args.solve_colors:
         with_config(scratch, solve_colors=True, solve_order=args.solve_order)
     test = eval_files(Path(args.data) / args.name, args.limit, 0)
@@ -194,14 +192,15 @@ def _shipped_step(shipped: Path) -> int:
     return json.loads((shipped / "metrics.json").read_text()).get("step", 0)
 
 
-def with_path_passes(scratch: Path, passes: int) -> None:
-    """``scratch``'s model run with ``passes`` path passes (its one ``PathPass`` applied again)."""
+def with_path_passes(scratch: Path, passes: int, kind: str = "path") -> None:
+    """``scratch``'s model run with ``passes`` passes of its one ``kind`` pass applied again
+    (``"path"``: ``PathPass``, ``ModelConfig.path_passes``; ``"point"``: ``PointPass``, ``point_passes``)."""
     from im2vec_cli.config import ModelConfig
 
-    config = ModelConfig.load(scratch / "config.json")
-    if not config.path_passes:
-        raise SystemExit(f"{scratch} has no path pass to apply again: train one first")
-    with_config(scratch, path_passes=passes)
+    key = f"{kind}_passes"
+    if not getattr(ModelConfig.load(scratch / "config.json"), key):
+        raise SystemExit(f"{scratch} has no {kind} pass to apply again: train one first")
+    with_config(scratch, **{key: passes})
 
 
 def with_config(scratch: Path, **changes) -> None:

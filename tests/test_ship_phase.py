@@ -105,6 +105,11 @@ def test_path_passes_alone_or_after_a_run_say_so_on_the_card(tmp_path):
     (tmp_path / "config.json").write_text(ModelConfig().to_json())
     with pytest.raises(SystemExit, match="no path pass"):
         with_path_passes(tmp_path, 2)
+    with pytest.raises(SystemExit, match="no point pass"):  # --point-passes N
+        with_path_passes(tmp_path, 2, "point")
+    (tmp_path / "config.json").write_text(ModelConfig(point_passes=1).to_json())
+    with_path_passes(tmp_path, 8, "point")
+    assert ModelConfig.load(tmp_path / "config.json").point_passes == 8
 
 
 def test_shipping_names_the_commit_it_is_given_and_replaces_only_the_model_files(tmp_path):

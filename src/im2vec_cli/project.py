@@ -180,9 +180,7 @@ def _fit(model: Im2Vec, x: torch.Tensor, s: ProjectSettings, segments: int | Non
         code = _adam(model, target, [code], [s.code_lr], lambda c: _with_points(base, model.path_points(c, k)),
                      s.code_steps, tau)[0]
     with torch.no_grad():
-        points = model.path_points(code, k)  # (N, P, 3k, 2)
-        if model.point_pass is not None:  # the model's point passes move those outlines, from the pictures
-            points = model.draw(code, depth, color, k, x).points
+        points = model.draw(code, depth, color, k, x).points  # (N, P, 3k, 2), moved by the model's point passes if any
     colors = base.colors
     if s.point_steps:
         learn = not model.palette.numel()

@@ -118,8 +118,8 @@ class Im2Vec(nn.Module):
         ``segments``: k for every path (default ``config.segments``), or a ``(B, P)`` tensor of
         per-path counts (e.g. from ``choose_segments``), padded as described in ``Decoded``.
         ``images (B, C, S, S)``: the pictures ``z`` encodes, for the model's path passes
-        (``config.path_passes``, ``_path_passes``); without them, the paths of ``z`` alone.
-        and the point passes (``config.point_passes``, ``draw``); without them, the paths of ``z`` alone.
+        (``config.path_passes``, ``_path_passes``) and point passes (``config.point_passes``,
+        ``draw``); without them, the paths of ``z`` alone.
         ``solve``: colours solved in training too (``path_state``).
         """
         return self.draw(*self.path_state(z, images, solve), segments, images)
@@ -183,10 +183,16 @@ class Im2Vec(nn.Module):
             dec = dataclasses.replace(dec, points=moved.view(b, p, m, 2))
         dec = dataclasses.replace(dec, points=best) if select else dec
         if cfg.solve_colors and not self.training:  # the colours solved again for the outlines as moved
-            cover = render_coverage(dec.points, size=cfg.image_size, tau=COLOR_TAU, samples=cfg.samples).to(images.dtype)
-            dec = dataclasses.replace(dec, colors=solve_colors(cover, dec.depth, images.expand(-1, 3, -1, -1),
-                                                               dec.colors, COLOR_RIDGE))
+            cover, target = self._color_problem(dec.points, images)
+            dec = dataclasses.replace(dec, colors=solve_colors(cover, dec.depth, target, dec.colors, COLOR_RIDGE))
         return dec
+
+    def _color_problem(self, points: torch.Tensor, images: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """What the colour and order solves take of paths ``(B, P, 3k, 2)`` drawn for ``images (B, C, S, S)``:
+        each path's coverage ``(B, P, S, S)`` at ``COLOR_TAU`` and the pictures as ``(B, 3, S, S)``."""
+        cfg = self.config
+        cover = render_coverage(points, size=cfg.image_size, tau=COLOR_TAU, samples=cfg.samples).to(images.dtype)
+        return cover, images.expand(-1, 3, -1, -1)
 
     def path_state(self, z: torch.Tensor, images: torch.Tensor | None = None, solve: bool = False,
                    colors: bool = True) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -204,9 +210,7 @@ class Im2Vec(nn.Module):
         if images is not None and self.path_pass is not None:
             code, color = self._path_passes(images, code, depth, color)
         if images is not None and colors and self.config.solve_colors and (solve or not self.training):
-            cover = render_coverage(self.path_points(code, self.config.segments), size=self.config.image_size,
-                                    tau=COLOR_TAU, samples=self.config.samples).to(images.dtype)  # (B, P, S, S)
-            target = images.expand(-1, 3, -1, -1)
+            cover, target = self._color_problem(self.path_points(code, self.config.segments), images)
             if self.config.solve_order and not self.training:
                 depth = solve_order(cover, depth, target, color, COLOR_RIDGE)
             color = solve_colors(cover, depth, target, color, COLOR_RIDGE)
