@@ -100,6 +100,12 @@ def make(d: Path) -> dict[str, tuple[list[str], int, str | None]]:
     (d / "dash.svg").write_text('<svg xmlns="http://www.w3.org/2000/svg" width="100" height="100"><line x1="0" '
                                 'y1="50" x2="100" y2="50" stroke="black" stroke-width="2" stroke-dasharray="0.0125"/>'
                                 '</svg>')
+    clip = Image.new("RGB", (512, 512), "white")  # flat circles drawn without anti-aliasing: curves, not pixel art
+    palette = [tuple(int(c) for c in rng.integers(0, 256, 3)) for _ in range(10)]
+    for i in range(120):
+        x, y, r = *rng.uniform(0, 512, 2), rng.uniform(3, 64)
+        ImageDraw.Draw(clip).ellipse((x - r, y - r, x + r, y + r), fill=palette[i % 10])
+    clip.save(d / "clipart512.png")
     (d / "scans").mkdir()
     for i in range(10):
         w, h = (int(v) for v in rng.integers(400, 601, 2))
@@ -113,6 +119,8 @@ def make(d: Path) -> dict[str, tuple[list[str], int, str | None]]:
         g.save(d / "glyphs" / f"g{i:02d}.png")
     return {
         "blocks 256² (8 px, 20 colours)": (["vectorize", "blocks256.png", "-o", "blocks256.svg"], 60, "blocks256.png"),
+        "hard-edged clip art 512² (120 flat circles)": (["vectorize", "clipart512.png", "-o", "clipart512.svg"], 60,
+                                                         "clipart512.png"),
         "RGB noise 1024²": (["vectorize", "noise1024.png", "-o", "noise1024.svg"], 90, "noise1024.png"),
         "checkerboard 1024² (1 px)": (["vectorize", "checker1024.png", "-o", "checker1024.svg"], 90, "checker1024.png"),
         "colour gradient 2048²": (["vectorize", "gradient2048.png", "-o", "gradient2048.svg"], 90, "gradient2048.png"),

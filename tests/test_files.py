@@ -24,3 +24,17 @@ def test_every_mode_reads_as_rgb_over_white(mode):
     got = image_to_tensor(img)
     assert got.shape == (3, 9, 13) and got.dtype == torch.float32
     assert torch.equal(got, _over_white(img))
+
+
+def test_a_near_black_16_bit_picture_stays_near_black():
+    """16-bit samples are scaled by 65535 whatever their values: a picture whose samples all sit
+    under 256 is dark, not read as 8-bit (it came out at mean 0.51 for 0.002)."""
+    import io
+
+    from im2vec_cli.files import load_image
+
+    buf = io.BytesIO()
+    Image.fromarray(np.full((16, 16), 131, np.uint16)).save(buf, "PNG")
+    assert Image.open(io.BytesIO(buf.getvalue())).mode == "I;16"
+    got = load_image("dark.png", buf.getvalue())
+    assert torch.allclose(got, torch.full_like(got, 131 / 65535))

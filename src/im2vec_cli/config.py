@@ -30,6 +30,17 @@ DEFAULT_SHRINK = 1e-4  # added to each of its covariances' diagonal, in units of
 MAX_FEEDBACK = 8
 
 
+# ModelConfig's bounds, checked before a model is built: far above any model trained here (image_size 64,
+# paths 8, widths 128), and the largest model they allow has 121 M parameters (0.5 GB; tests/test_config.py),
+# where a crafted config.json asked for 7 GB
+MODEL_AT_MOST = {"image_size": 256, "channels": 4, "latent": 1024, "paths": 64, "enc_width": 64, "lstm_hidden": 512,
+                 "code": 512, "dec_width": 512, "dec_layers": 16, "deform_width": 512, "segments": 200,
+                 "min_segments": 200, "max_segments": 200, "samples": 32, "levels": 6, "segment_predictor": 1024,
+                 "path_pass_width": 128, "point_pass_width": 512, "point_smooth": 16}
+MAX_RENDER_WORK = 2**26  # paths x segments x samples x pixels of one picture's render (shipped models: 1.6-3.3 M)
+MAX_CONFIG_BYTES = 2**20  # a config file larger than this is refused unread (a 3 GB sparse one was read whole)
+
+
 class JsonConfig:
     """A frozen dataclass stored as JSON (class name and format version beside the fields)."""
 
@@ -70,14 +81,7 @@ class JsonConfig:
 
     @classmethod
     def load(cls, path: str | Path):
-        try:
-            data = json.loads(Path(path).read_text())
-        except FileNotFoundError:
-            raise Im2VecError(f"{path}: no such file") from None
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise Im2VecError(f"{path}: not valid JSON ({exc})") from None
-        except OSError as exc:
-            raise Im2VecError(f"{path}: cannot read ({exc.strerror or exc})") from None
+        data = read_json(path)
         if not isinstance(data, dict):
             raise Im2VecError(f"{path}: expected a JSON object, got {type(data).__name__}")
         if data.get("format_version", FORMAT_VERSION) != FORMAT_VERSION:
@@ -86,6 +90,20 @@ class JsonConfig:
             return cls.from_dict(data)
         except Im2VecError as exc:
             raise Im2VecError(f"{path}: {exc}") from None
+
+
+def read_json(path: str | Path, limit: int = MAX_CONFIG_BYTES) -> Any:
+    """The JSON of a regular file of at most ``limit`` bytes (``files.read_regular``: a FIFO,
+    a device or a larger file is refused unread); anything else is one ``Im2VecError`` line."""
+    from .files import read_regular
+
+    raw = read_regular(path, limit, what="config file")
+    try:
+        return json.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError:
+        raise Im2VecError(f"{path}: not valid JSON (not UTF-8 text)") from None
+    except (json.JSONDecodeError, RecursionError) as exc:
+        raise Im2VecError(f"{path}: not valid JSON ({str(exc)[:120]})") from None
 
 
 @dataclass(frozen=True)
@@ -134,6 +152,13 @@ class ModelConfig(JsonConfig):
         for key, low in at_least.items():
             if getattr(self, key) < low:
                 raise ConfigError(f"ModelConfig.{key} must be >= {low}, got {getattr(self, key)}")
+        for key, high in MODEL_AT_MOST.items():  # before anything is built from it: a crafted config costs nothing
+            if getattr(self, key) > high:
+                raise ConfigError(f"ModelConfig.{key} must be <= {high}, got {getattr(self, key)}")
+        work = self.paths * self.max_segments * self.samples * self.image_size**2
+        if work > MAX_RENDER_WORK:
+            raise ConfigError(f"ModelConfig: paths x max_segments x samples x image_size^2 is {work:,}, over the "
+                              f"{MAX_RENDER_WORK:,} (line x pixel pairs) one render may cost")
         if self.feedback > MAX_FEEDBACK:
             raise ConfigError(f"ModelConfig.feedback must be <= {MAX_FEEDBACK} (each pass renders the batch once), "
                               f"got {self.feedback}")

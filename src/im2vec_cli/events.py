@@ -182,3 +182,14 @@ class Stage(Event, kind="stage"):
 
 
 STAGES = ("read", "traced", "polished", "finished")  # `Stage.stage`: read, traced and fitted, polished, untangled
+
+
+# --- worker processes (parallel.vectorize_chunks) ----------------------------------------------------
+
+
+class WorkerDied(Event, kind="worker_died"):
+    """A worker process died (``signal``: the signal that ended it, or 0 when not known) with
+    ``pictures`` in its pool's hands; they are vectorized again in a fresh pool, one chunk at a
+    time, and a picture whose worker dies again fails."""
+    signal: int
+    pictures: int

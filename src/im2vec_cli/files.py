@@ -156,6 +156,7 @@ def open_image(data: bytes, name: str = "<image>", max_pixels: int = MAX_PIXELS)
         raise InputError(f"{name}: empty file")
     try:
         with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # Pillow's notes on odd files (a corrupt EXIF block): the picture reads
             warnings.simplefilter("error", Image.DecompressionBombWarning)
             img = Image.open(io.BytesIO(data))
             if img.width * img.height > MAX_PIXELS:
@@ -190,7 +191,8 @@ def image_to_tensor(img: Image.Image) -> torch.Tensor:
     """Any Pillow mode -> ``(3, H, W)`` float in [0, 1], alpha composited onto white."""
     if img.mode in ("I;16", "I;16B", "I;16L", "I;16N", "I"):
         arr = np.asarray(img, dtype=np.float64)
-        top = 65535.0 if arr.max() > 255 else 255.0
+        # 16 bits a sample (a near-black one too); 32-bit integers say nothing of their range: by their values
+        top = 65535.0 if img.mode.startswith("I;16") or arr.max() > 255 else 255.0
         g = torch.from_numpy(arr / top).float().clamp(0, 1)
         return g.unsqueeze(0).expand(3, -1, -1).contiguous()
     if img.mode == "F":
@@ -236,6 +238,27 @@ def read_file(path: str | os.PathLike, limit: int = MAX_INPUT_BYTES) -> bytes:
         raise InputError(f"{path}: is a directory") from None
     except OSError as exc:
         raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+
+
+def read_regular(path: str | os.PathLike, limit: int, what: str = "file") -> bytes:
+    """The bytes of a regular file of at most ``limit`` bytes. A FIFO, a device or a folder is
+    refused without waiting on it (opened non-blocking, then checked), and so is a larger file,
+    from its size before any read (a sparse file of gigabytes costs nothing): one ``InputError``."""
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0))
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such file") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    st = os.fstat(fd)
+    if not stat.S_ISREG(st.st_mode) or st.st_size > limit:
+        os.close(fd)
+        if stat.S_ISREG(st.st_mode):
+            raise InputError(f"{path}: {st.st_size:,} bytes, over the {limit:,} a {what} may have")
+        kind = "a folder" if stat.S_ISDIR(st.st_mode) else "a FIFO" if stat.S_ISFIFO(st.st_mode) else "not a regular file"
+        raise InputError(f"{path}: {kind}, where a {what} should be")
+    with os.fdopen(fd, "rb") as f:
+        return read_capped(f, str(path), limit)
 
 
 def load_image(path: str | os.PathLike, data: bytes | None = None, max_pixels: int = MAX_PIXELS) -> torch.Tensor:

@@ -114,6 +114,21 @@ CASES = {
     "interpolate --segments auto": (generate.in_interpolate_segments_auto, "usage"),
     "--fit with a value": (generate.in_fit_with_a_value, "usage"),
     "encode --no-fit of a text file named .png": (generate.in_encode_no_fit_garbage, "error"),
+    "near-black 16-bit PNG": (vectorize.in_near_black_16bit, "ok"),
+    "corrupt EXIF block": (vectorize.in_corrupt_exif, "ok"),
+    "output onto a file with a trailing slash": (vectorize.in_output_slash_onto_a_file, "error"),
+    "hard-edged clip art (384 px)": (vectorize.in_hard_edged_clip_art, "ok"),
+    "model: config asks for huge sizes": (model.in_model_config_huge_sizes, "error"),
+    "model: config integer too large for torch": (model.in_model_config_int_too_large, "error"),
+    "model: 3 GB sparse config": (model.in_model_config_sparse, "error"),
+    "model: config is a FIFO": (model.in_model_config_fifo, "error"),
+    "model: int8 weights": (model.in_model_int8_weights, "error"),
+    "SVG: nested <svg>": (render.in_render_nested_svg, "error"),
+    "SVG: <switch>": (render.in_render_switch, "png"),
+    "SVG: <a>": (render.in_render_link, "png"),
+    "SVG: <symbol> through <use>": (render.in_render_symbol_through_use, "error"),
+    "SVG: definitions outside <defs>": (render.in_render_definitions, "png"),
+    "SVG: opacity 50%": (render.in_render_opacity_percent, "error"),
     "train config: null": (train.in_config_null, "error"),
     "train config: a list": (train.in_config_list, "error"),
     "train config: model section not an object": (train.in_config_model_not_object, "error"),
@@ -144,6 +159,15 @@ def test_all_black_is_one_canvas_square(tmp_path, model_dir):
 
     img = rasterize_svg((tmp_path / "out.svg").read_text(), 50, 40)
     assert img.max() < 0.01  # every pixel black, as in the input
+
+
+def test_no_library_warning_reaches_stderr(tmp_path, model_dir):
+    """A corrupt EXIF block, as a real process (pytest's own capture would hide a warning in
+    process): Pillow's UserWarnings and their source lines stay off stderr, which is empty."""
+    args, _ = vectorize.in_corrupt_exif(tmp_path, model_dir)
+    r = subprocess.run([sys.executable, "-m", "im2vec_cli", *args, "--model", model_dir], capture_output=True,
+                       text=True, timeout=120)
+    assert r.returncode == 0 and r.stderr == "", r.stderr
 
 
 @pytest.mark.slow  # three real processes under an address-space cap

@@ -283,3 +283,101 @@ def test_no_refine_folders_use_worker_processes_only_for_the_clean_work(tmp_path
     assert len(list((tmp_path / "out").glob("*.svg"))) == 64
     assert [(c["jobs"], c["options"].refine, c["options"].parts) for c in calls] == (
         [(2, False, "clean")] if pooled else [])
+
+
+def _children(pid: int) -> list[int]:
+    """The processes whose parent is ``pid`` (from /proc)."""
+    out = []
+    for d in os.listdir("/proc"):
+        if d.isdigit():
+            try:
+                with open(f"/proc/{d}/stat") as f:
+                    if int(f.read().rsplit(")", 1)[1].split()[1]) == pid:
+                        out.append(int(d))
+            except (OSError, ValueError, IndexError):
+                pass
+    return out
+
+
+def _workers(pid: int) -> list[int]:
+    """The pool workers of the `im2vec` process ``pid``: the forkserver's children."""
+    servers = []
+    for kid in _children(pid):
+        try:
+            with open(f"/proc/{kid}/cmdline", "rb") as f:
+                if b"forkserver" in f.read():
+                    servers.append(kid)
+        except OSError:
+            pass
+    return [w for s in servers for w in _children(s)]
+
+
+@pytest.mark.slow  # worker processes, SIGKILLed from outside
+@pytest.mark.parametrize("kills", ["once", "every worker"])
+def test_a_killed_worker_is_noticed(tmp_path, model_dir, kills):
+    """SIGKILL into a worker of `vectorize --jobs 2` (it hung until killed, 0 SVGs written). Once:
+    a warning line, its pictures vectorized again, all written, exit 0. Every worker, again and
+    again: each picture in flight fails by name, the ones done before are written, exit 1; it
+    ends, with no worker left."""
+    import signal
+    import time
+
+    d = tmp_path / "in"
+    d.mkdir()
+    for i in range(300):
+        glyph_like(32 + i % 3).save(d / f"g{i:03d}.png")
+    out = tmp_path / "out"
+    p = subprocess.Popen(EXE + ["vectorize", str(d), "-o", str(out), "--model", model_dir, "--jobs", "2"],
+                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    deadline, killed = time.time() + 150, 0
+    while p.poll() is None and time.time() < deadline:
+        if out.exists() and any(out.glob("g*.svg")) and (kills == "every worker" or not killed):
+            for w in _workers(p.pid)[: 1 if kills == "once" else None]:
+                try:
+                    os.kill(w, signal.SIGKILL)
+                    killed += 1
+                except ProcessLookupError:
+                    pass
+        time.sleep(0.2)
+    err = p.communicate(timeout=60)[1]
+    assert killed >= 1 and "Traceback" not in err, err
+    written = sorted(f.name for f in out.iterdir())
+    assert all(not f.startswith(".") for f in written)
+    lines = err.strip().splitlines()
+    assert sum("a worker process died" in line and line.startswith("Warning:") for line in lines) >= 1, (killed, err)
+    if kills == "once":
+        assert p.returncode == 0, err
+        assert len(written) == 300
+    else:
+        assert p.returncode == 1, err
+        failed = {line.split(":")[1].strip() for line in lines if "died on it" in line}
+        assert failed and lines[-1] == f"Error: {len(failed)} of 300 inputs failed"
+        assert sorted(failed) == sorted(str(d / f"g{i:03d}.png") for i in range(300) if f"g{i:03d}.svg" not in written)
+    time.sleep(2)
+    assert _workers(p.pid) == [] and subprocess.run(["pgrep", "-f", str(d)], capture_output=True).stdout == b""
+
+
+def test_jobs_are_capped_by_the_work(tmp_path, model_dir, monkeypatch):
+    """`-j 6` on 40 pictures (two chunks) starts two workers, not six model copies; on 2 pictures
+    (one chunk) none: the work runs here."""
+    import im2vec_cli.parallel as parallel
+    from im2vec_cli.vector import VectorImage
+
+    calls = []
+
+    def fake(chunks, model_name, **kw):
+        calls.append(kw["jobs"])
+        for c in chunks:
+            yield [VectorImage(a.shape[1], a.shape[0]) for a in c]
+
+    monkeypatch.setattr(parallel, "vectorize_chunks", fake)
+    for n, want in ((40, [2]), (2, [])):
+        d = tmp_path / f"in{n}"
+        d.mkdir()
+        for i in range(n):
+            glyph_like(32).save(d / f"g{i:03d}.png")
+        calls.clear()
+        res = CliRunner().invoke(cli, ["vectorize", str(d), "-o", str(tmp_path / f"out{n}"), "--model", model_dir,
+                                       "-j", "6", "--effort", "draft"])
+        assert res.exit_code == 0, res.output
+        assert calls == want and len(list((tmp_path / f"out{n}").glob("*.svg"))) == n

@@ -202,3 +202,60 @@ def test_longest_legal_name_is_writable(tmp_path, model_dir):
     assert res.exit_code == 0, res.output
     check_svg((tmp_path / name).read_text(), 40, 24)
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+
+
+def test_a_trailing_slash_names_a_folder(tmp_path, model_dir):
+    """``-o NAME/``: a folder. Onto an existing file it is refused and the file kept (it was
+    replaced, exit 0); a new name becomes a folder with the SVG in it (it was a file NAME)."""
+    src = png(tmp_path / "a.png")
+    existing = tmp_path / "existing.svg"
+    existing.write_text("someone's work")
+    res = CliRunner().invoke(cli, ["vectorize", src, "-o", f"{existing}/", "--model", model_dir])
+    assert res.exit_code == 1 and res.stderr.splitlines() == [
+        f"Error: {existing}/: ends with a slash, which names a folder, but {existing} is not a folder"]
+    assert existing.read_text() == "someone's work"
+    res = CliRunner().invoke(cli, ["vectorize", src, "-o", f"{tmp_path / 'newdir'}/", "--model", model_dir])
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "newdir").is_dir()
+    check_svg((tmp_path / "newdir" / "a.svg").read_text(), 40, 24)
+    res = CliRunner().invoke(cli, ["render", str(tmp_path / "newdir" / "a.svg"), "-o", f"{tmp_path / 'x.png'}/"])
+    assert res.exit_code == 1 and "ends with a slash, which names a folder; give a file name" in res.stderr
+    assert not (tmp_path / "x.png").exists()
+
+
+@pytest.mark.parametrize("case", ["read-only", "onto a file", "through a file"])
+def test_an_output_folder_that_cannot_be_written_is_one_line_before_any_work(tmp_path, model_dir, monkeypatch, case):
+    """Five pictures into a folder that cannot take them: one error line (it was the same line
+    five times, once per picture), exit 1, nothing written anywhere."""
+    srcs = [png(tmp_path / f"p{i}.png") for i in range(5)]
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    out = {"read-only": tmp_path / "ro", "onto a file": blocker, "through a file": blocker / "sub"}[case]
+    if case == "read-only":
+        out.mkdir()
+        out.chmod(0o555)
+        real_open = os.open
+
+        def denied(path, *a, **k):  # root ignores permissions: fail as a read-only folder would
+            if Path(path) == out or Path(path).parent == out:
+                raise PermissionError(errno.EACCES, "Permission denied", str(path))
+            return real_open(path, *a, **k)
+
+        monkeypatch.setattr(os, "open", denied)
+    res = CliRunner().invoke(cli, ["vectorize", *srcs, "-o", str(out), "--model", model_dir])
+    monkeypatch.undo()
+    if case == "read-only":
+        out.chmod(0o755)
+        assert list(out.iterdir()) == []
+    assert res.exit_code == 1 and len(res.stderr.splitlines()) == 1 and res.stderr.startswith(f"Error: {out}")
+    assert blocker.read_text() == "x"
+
+
+def test_a_file_given_twice_is_vectorized_once_and_said(tmp_path, model_dir):
+    src = png(tmp_path / "a.png")
+    other = png(tmp_path / "b.png", 30, 30)
+    res = CliRunner().invoke(cli, ["vectorize", src, other, src, str(tmp_path / "." / "a.png"), "-o",
+                                   str(tmp_path / "out"), "--model", model_dir])
+    assert res.exit_code == 0, res.output
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["a.svg", "b.svg"]
+    assert res.stderr.count("is given twice") == 2 and "two inputs would be written" not in res.stderr

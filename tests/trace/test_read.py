@@ -207,3 +207,38 @@ def test_a_clean_colour_picture_is_not_read_as_a_scan():
             '<circle cx="32" cy="32" r="20" fill="none" stroke="black" stroke-width="3"/>')
     pic = rasterize_svg(svg_of(body, 128), 128, 128)
     assert read(pic).kind == "logo"
+
+
+def _aliased_circles(size: int, seed: int = 1) -> np.ndarray:
+    """``(size, size, 3)``: 120 flat circles of 10 colours drawn without anti-aliasing (PIL)."""
+    from PIL import ImageDraw
+
+    rng = np.random.default_rng(seed)
+    img = Image.new("RGB", (size, size), "white")
+    draw = ImageDraw.Draw(img)
+    colors = [tuple(int(c) for c in rng.integers(0, 256, 3)) for _ in range(10)]
+    for i in range(120):
+        x, y, r = *rng.uniform(0, size, 2), rng.uniform(3, size / 8)
+        draw.ellipse((x - r, y - r, x + r, y + r), fill=colors[i % 10])
+    return np.asarray(img, np.float64) / 255
+
+
+def test_a_hard_edged_drawing_of_curves_is_no_pixel_art():
+    """Flat circles without anti-aliasing at 384 px were read as pixel art and traced along their
+    staircases (75,196 segments, 80 s on the probe's picture): now a logo of its exact colours,
+    each a curve. A sprite at its own size (16 px, or 96 px of pixel-sized features) stays pixel art."""
+    from im2vec_cli.trace.outline import traced
+
+    pic = _aliased_circles(384)
+    r = read(pic)
+    assert r.kind == "logo" and r.figures == {"aliased": True}
+    vec, _, exact = traced(r.picture, 0.5, None, None, r.kind, r.tone)
+    assert not exact and len(vec.shapes) <= 11  # one path a colour
+    assert vec.num_segments < 3000
+    back = rasterize_svg(vec.to_svg(), 384, 384)
+    assert ((back - pic) ** 2).mean() < 0.002
+    assert (np.abs(back - pic).max(-1) > 0.5).mean() < 0.01  # no colour lost, no sliver: edges only
+    rng = np.random.default_rng(1)
+    colors = np.vstack([[1, 1, 1], rng.integers(0, 256, (5, 3)) / 255])
+    assert read(colors[rng.integers(0, 6, (16, 16))]).kind == "pixel"
+    assert read(colors[rng.integers(0, 6, (96, 96))]).kind == "pixel"

@@ -3,6 +3,7 @@ reporting bad files as they come (psf/black's ``Report``: done/failed and the ex
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -43,6 +44,7 @@ class Report:
 
 def expand_inputs(inputs: Iterable[str]) -> list[Item]:
     """Files and folders (searched recursively for PNG/JPG) -> ``(path, folder or None)``.
+    A file given twice is there twice (``dedupe_inputs`` keeps it once).
 
     What a folder holds under an image name that is not a regular file (a FIFO, a device, a
     broken link) is skipped with a warning; ``-`` (stdin) is an input only alone."""
@@ -67,11 +69,69 @@ def expand_inputs(inputs: Iterable[str]) -> list[Item]:
     return out
 
 
+def dedupe_inputs(items: list[Item]) -> tuple[list[Item], list[str]]:
+    """The inputs with every file given more than once (by path, through a link, or inside a
+    folder also given) kept once, at its first place, and a note for each repeat."""
+    import os
+
+    seen: dict[object, str] = {}
+    kept, notes = [], []
+    for item, root in items:
+        try:
+            st = os.stat(item) if item != "-" else None
+            key = (st.st_dev, st.st_ino) if st is not None else "-"
+        except OSError:  # a missing input is reported when it is read
+            key = os.path.realpath(item)
+        if key in seen:
+            notes.append(f"{item} is given twice (also as {seen[key]}): vectorized once" if item != seen[key]
+                         else f"{item} is given twice: vectorized once")
+            continue
+        seen[key] = item
+        kept.append((item, root))
+    return kept, notes
+
+
+def names_folder(output: str) -> bool:
+    """Whether ``-o`` names a folder: an existing one, or any path that ends with a slash. A
+    slash after the name of something that is not a folder is refused (``Im2VecError``): the
+    user meant a folder, and the file there is not to be replaced."""
+    import os
+
+    if output == "-":
+        return False
+    slash = output.endswith(os.sep) or bool(os.altsep and output.endswith(os.altsep))
+    path = Path(output)
+    if slash and os.path.lexists(path) and not path.is_dir():
+        raise Im2VecError(f"{output}: ends with a slash, which names a folder, but {path} is not a folder")
+    return slash or path.is_dir()
+
+
+def check_output_folder(output: str) -> None:
+    """Make the output folder of several inputs and check that a file can be written there, once,
+    before any work: a read-only folder, a path through a file or a file where the folder should
+    be is one error line, not one per picture."""
+    import errno
+    import tempfile
+
+    from .streams import make_folder
+
+    out = Path(output)
+    if os.path.lexists(out) and not out.is_dir():
+        raise Im2VecError(f"{output}: not a folder (several inputs are written into a folder; give another -o)")
+    make_folder(out)
+    try:
+        with tempfile.TemporaryFile(dir=out):
+            pass
+    except OSError as exc:
+        why = exc.strerror or errno.errorcode.get(exc.errno, str(exc))
+        raise Im2VecError(f"{output}: cannot write into this folder ({why})") from None
+
+
 def _destination(item: str, root: Path | None, output: str, suffix: str, single: bool) -> str:
     """Where the result of one input goes: the file (or stdout) itself for a single input,
     else ``OUT/<name><suffix>`` (``OUT/<path under the folder>`` for inputs found in a folder)."""
     if single:
-        if output != "-" and Path(output).is_dir():
+        if names_folder(output):
             return str(Path(output) / ((Path(item).stem if item != "-" else "stdin") + suffix))
         return output
     if root is not None:
@@ -112,8 +172,6 @@ def refuse_overwrite(outputs: Iterable[str | Path], inputs: Iterable[str | Path]
     """A usage error if an output would replace an input (same path, or same file through a
     link). Inputs are indexed once (real paths and inode numbers), so a folder of N inputs
     costs O(N), not a comparison per pair."""
-    import os
-
     by_path, by_inode = {}, {}
     for i in inputs:
         if str(i) in ("-", ""):

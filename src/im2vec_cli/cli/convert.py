@@ -3,13 +3,22 @@
 from __future__ import annotations
 
 import collections
+import signal
 
 import click
 
 from ..errors import Im2VecError
 from ..options import EFFORTS, MAX_SPECKLE, PARTS, PRESETS, VectorizeOptions
 from .app import EXIT_HELP, cli, starting_up, warn
-from .batch import expand_inputs, plan_outputs, refuse_overwrite, run_batch
+from .batch import (
+    check_output_folder,
+    dedupe_inputs,
+    expand_inputs,
+    names_folder,
+    plan_outputs,
+    refuse_overwrite,
+    run_batch,
+)
 from .options import BYTES, Finite, load_model, model_options, nonempty, parse_segments
 from .streams import load_input_image, read_input, write_output
 
@@ -85,10 +94,14 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, toleranc
     for note in _ignored_options(ctx):
         warn(note)
     items = expand_inputs(inputs)
-    single = len(items) == 1 and items[0][1] is None
+    single = len(items) == 1 and items[0][1] is None  # one input given: -o may name its file
     if not single and output == "-":
         raise click.UsageError("several inputs need -o DIR")
-    dests, notes = plan_outputs(items, output, ".svg", single)
+    items, notes = dedupe_inputs(items)
+    dests, more = plan_outputs(items, output, ".svg", single)
+    notes += more
+    if not single or names_folder(output):
+        check_output_folder(output)  # once, before the model loads: not one error per picture
     with starting_up():  # (load_model pauses the collector too)
         from .. import api, runtime
     free = runtime.free_cores() if len(items) > 1 else 1  # before torch runs anything
@@ -117,6 +130,7 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, toleranc
         except Im2VecError as exc:
             return item, exc
 
+    jobs = min(jobs, -(-len(items) // VECTORIZE_CHUNK))  # a worker per chunk at most: each loads the model
     if jobs > 1 and len(items) > 1:
         threads = runtime.intra_op_threads(len(items), jobs, free)
         run_batch(ctx, items, _in_pool(model_name, jobs, threads, device, seed, options, write), chunk=len(items))
@@ -217,8 +231,13 @@ def _in_pool(model_name, jobs, threads, device, seed, options, write):
                     names.append([item for item, _ in good])  # descriptor server that Ctrl-C interrupts
                     yield [img.permute(1, 2, 0).numpy() for _, img in good]
 
+        def died(event):
+            how = f" (killed by {signal.Signals(event.signal).name})" if event.signal in signal.valid_signals() else ""
+            warn(f"a worker process died{how} with {event.pictures} pictures in hand: they are vectorized again, "
+                 "a chunk at a time")
+
         for vecs in parallel.vectorize_chunks(chunks(), model_name, jobs=jobs, threads=threads, device=device,
-                                              seed=seed, options=options):
+                                              seed=seed, options=options, on_event=died):
             yield from bad
             bad.clear()
             for item, vec in zip(names.popleft(), vecs):
@@ -248,19 +267,20 @@ def encode(ctx, inputs, output, fmt, fit, model_name, device, seed):
 
     from .. import api
 
-    items = expand_inputs(inputs)
+    items, notes = dedupe_inputs(expand_inputs(inputs))
     if fmt == "npy" and output == "-":
         raise click.UsageError("--format npy needs -o DIR")
-    model = load_model(model_name, device, seed)
-    lines = []
-
     if fmt == "npy":
-        dests, notes = plan_outputs([(i if i != "-" else "stdin.png", r) for i, r in items], output, ".npy", False)
+        dests, more = plan_outputs([(i if i != "-" else "stdin.png", r) for i, r in items], output, ".npy", False)
         where = dict(zip((item for item, _ in items), dests))
-        for note in notes:
-            warn(note)
+        notes += more
+        check_output_folder(output)
     else:
         refuse_overwrite([output], [item for item, _ in items])
+    for note in notes:
+        warn(note)
+    model = load_model(model_name, device, seed)
+    lines = []
 
     def write(item, z):
         if fmt == "npy":

@@ -66,6 +66,8 @@ def write_output(path: str | os.PathLike, data: bytes | str, *, parents: bool = 
     if str(path) == "-":
         write_stdout(raw)
         return
+    if str(path).endswith(os.sep) or (os.altsep and str(path).endswith(os.altsep)):  # Path() would drop the slash
+        raise Im2VecError(f"{path}: ends with a slash, which names a folder; give a file name")
     if parents:
         make_folder(Path(path).parent)
     try:

@@ -36,17 +36,11 @@ def _configs(config_file, model_opts: dict, train_opts: dict):
 
     Returns the two configs (validated) and the model and train options given on the command line or
     in the file (what a resumed run takes over its checkpoint's configs)."""
-    import json
-
-    from ..config import ModelConfig, TrainConfig
+    from ..config import ModelConfig, TrainConfig, read_json
 
     sections = {}
     if config_file:
-        try:
-            with open(config_file) as f:
-                sections = json.loads(f.read())
-        except (OSError, json.JSONDecodeError) as exc:
-            raise Im2VecError(f"{config_file}: cannot read config ({exc})") from None
+        sections = read_json(config_file)  # a regular file of at most 1 MiB, UTF-8 JSON: else one line
         if not isinstance(sections, dict):
             raise Im2VecError(f"{config_file}: expected a JSON object with 'model' and/or 'train' sections")
     for name in ("model", "train"):

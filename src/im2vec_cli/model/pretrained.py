@@ -23,6 +23,7 @@ from .prior import NEIGHBOURS_CONFIG, NEIGHBOURS_WEIGHTS, LatentPrior, Neighbour
 REPO_MODELS = Path(__file__).resolve().parents[3] / "models"
 PACKAGE_MODELS = Path(__file__).resolve().parents[1] / "models"
 DEFAULT_MODEL = "fonts"
+STORED_FLOATS = (torch.float32, torch.float16, torch.bfloat16)  # how a float weight may be stored (``half``: fp16)
 
 
 def unwrap_model(model: torch.nn.Module) -> torch.nn.Module:
@@ -117,6 +118,10 @@ def from_pretrained(name_or_dir: str | os.PathLike = DEFAULT_MODEL, device: str 
     except ValueError as exc:
         raise ModelError(f"{folder}: bad config ({exc})") from None
     ref = model.state_dict()
+    for k, v in state.items():  # before any cast: int8 weights would be cast silently
+        if k in ref and v.dtype != ref[k].dtype and not (ref[k].is_floating_point() and v.dtype in STORED_FLOATS):
+            raise ModelError(f"{weights}: {k} is stored as {str(v.dtype).removeprefix('torch.')}, "
+                             f"the model holds {str(ref[k].dtype).removeprefix('torch.')}")
     state = {k: v.float() if v.is_floating_point() else v for k, v in state.items()}  # fp16 storage -> fp32
     for k, v in state.items():
         if k in ref and v.shape != ref[k].shape:

@@ -42,6 +42,10 @@ THIN = 3.5  # px: strokes at most this wide (median) make line art
 PHOTO_SHARE = 0.6  # a picture whose 16 commonest colours (4 bits a channel) cover less than this share is a photo
 PHOTO_LOOSE = 2.0  # a photo's curves are fitted within twice the tolerance: 5134 -> 2959 segments on
 # skimage's coffee, 6.7 -> 4.5 s
+PIXEL_EDGES = 0.08  # native pixel art (no upscaling found) has at least this share of its pixels on a colour
+# edge (its pixels are its features: 0.3-0.9 on sprites); a hard-edged drawing of large shapes, its curves
+# aliased, has far fewer (flat circles at 384-512 px: 0.02-0.05) and is traced with smooth curves as a logo
+PIXEL_SIDE = 64  # a hard-edged picture this small is pixel art whatever its edges
 BLACK_INK = 0.35  # ink of a scan darker than this (mean channel, after flattening) and ...
 NEUTRAL_INK = 0.12  # ... less colourful than this (channel spread) is black ink
 
@@ -71,9 +75,12 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
     h, w, _ = picture.shape
     speck = max(2, 2 + max(h, w) // 256) if speckle is None else speckle
     block = pixel_block(picture) if preset in (None, "pixel") else 1
-    if preset == "pixel" or (preset is None and (block > 1 or hard_palette(picture) is not None)):
+    hard = preset is None and block == 1 and hard_palette(picture) is not None
+    if preset == "pixel" or (preset is None and block > 1) or (hard and _native_pixel_art(picture)):
         small = picture[::block, ::block] if block > 1 else picture
         return Reading("pixel", small, polish=False, figures={"block": block})
+    if hard:  # a large hard-edged drawing: its exact colours, outlined with curves (``regions.trace``)
+        return Reading("logo", picture, figures={"aliased": True})
     bg = background_color(picture)
     tone = two_tone(picture, bg) if preset in (None, "line", "logo") else None
     if preset is None and tone is not None and background_spread(picture, tone[1]) > UNEVEN:
@@ -103,6 +110,24 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
         return Reading("photo", smoothed(picture, max(noise, 0.02)), colors=PHOTO_COLORS, polish=False,
                        figures=figures, loose=PHOTO_LOOSE)
     return Reading("logo", smoothed(picture, noise) if noise > NOISE else picture, figures=figures)
+
+
+def _native_pixel_art(picture: np.ndarray) -> bool:
+    """Whether a hard-edged picture (``hard_palette``) without upscaled blocks is pixel art: small,
+    or made of pixel-sized features (``PIXEL_EDGES``). A large hard-edged drawing of curves is
+    not: traced along its pixel edges it is a staircase of thousands of segments."""
+    return max(picture.shape[:2]) <= PIXEL_SIDE or edge_share(picture) >= PIXEL_EDGES
+
+
+def edge_share(picture: np.ndarray) -> float:
+    """The share of the pixels of ``picture (H, W, 3)`` whose 8-bit colour differs from the pixel
+    above or to their left."""
+    q = np.round(picture * 255).astype(np.int64)
+    keys = (q[..., 0] << 16) | (q[..., 1] << 8) | q[..., 2]
+    edge = np.zeros(keys.shape, dtype=bool)
+    edge[1:] |= keys[1:] != keys[:-1]
+    edge[:, 1:] |= keys[:, 1:] != keys[:, :-1]
+    return float(edge.mean())
 
 
 def background_spread(picture: np.ndarray, alpha: np.ndarray) -> float:

@@ -130,11 +130,12 @@ def trace(image: np.ndarray, colors: int | None = None, max_regions: int | None 
     image = np.asarray(image, dtype=np.float64)
     bg = background_color(image)
     pixel = kind == "pixel"
-    hard = hard_palette(image, pixel) if colors is None or pixel else None
-    if hard is not None:
+    hard = hard_palette(image, pixel) if pixel or (colors is None and kind in ("", "logo")) else None
+    if hard is not None:  # exact colours: along the pixel edges, or, read as a logo (a drawing), with curves
+        exact = kind != "logo"
         if max_regions is None:  # the back layer covers the canvas, unless white shows around the picture
-            return _layers(*hard, white_around=(1 - bg).max() <= WHITE_TOL)
-        return _with_background(bg, _stacked_regions(image, *hard, max_regions, exact=True), image.shape, exact=True)
+            return _layers(*hard, white_around=(1 - bg).max() <= WHITE_TOL, exact=exact)
+        return _with_background(bg, _stacked_regions(image, *hard, max_regions, exact=exact), image.shape, exact=exact)
     if colors in (None, 1):
         tone = two_tone(image, bg) if tone is None else tone
     else:
@@ -149,12 +150,20 @@ def trace(image: np.ndarray, colors: int | None = None, max_regions: int | None 
     return _with_background(bg, _stacked_regions(image, palette, labels, max_regions), image.shape)
 
 
-def _layers(palette: np.ndarray, labels: np.ndarray, white_around: bool) -> list[Region]:
+ALIAS_SIGMA = 0.7  # px: the blur of a hard-edged drawing's layer masks whose 0.5 level is the curve its staircase draws
+TUCK = 2  # px: how far a layer of such a drawing stays inside the outline it shares with the layers over it
+
+
+def _layers(palette: np.ndarray, labels: np.ndarray, white_around: bool, exact: bool = True) -> list[Region]:
     """A hard-edged picture as one shape a colour, along its pixel edges: the colours stacked
     by area, largest at the back, each shape the union of its own pixels and those of every
     colour above it (so no background shows between neighbours at any zoom, and each colour is
     one path however many pieces it has). ``white_around``: the white around the picture
-    (touching its border) is the canvas."""
+    (touching its border) is the canvas. ``exact=False`` (a drawing of curves whose edges were
+    not anti-aliased): each shape is the 0.5 level of its mask blurred by ``ALIAS_SIGMA``, the
+    curve its staircase stands for, to be fitted and polished."""
+    from scipy.ndimage import binary_dilation, gaussian_filter
+
     _check_pieces(sum(label_count(labels == k) for k in range(len(palette))), f"pieces of {len(palette)} colours",
                   None)
     white = _white(palette)
@@ -169,7 +178,12 @@ def _layers(palette: np.ndarray, labels: np.ndarray, white_around: bool) -> list
     order = [k for k in np.argsort(-areas, kind="stable") if areas[k] > 0]
     regions, covered = [], ~around
     for k in order:
-        regions.append(Region(tuple(palette[k].tolist()), pixel_polygons(covered), exact=True))
+        if exact:
+            rings = pixel_polygons(covered)
+        else:  # the colours above pulled in from the outline they share with it: no sliver of this one shows there
+            tucked = covered & ~(covered & (labels != k) & binary_dilation(~covered, iterations=TUCK))
+            rings = level_polygons(gaussian_filter(tucked * 1.0, ALIAS_SIGMA))
+        regions.append(Region(tuple(palette[k].tolist()), rings, exact=exact))
         covered = covered & (labels != k)
         if not covered.any():
             break

@@ -38,10 +38,11 @@ _XLINK_HREF = "{http://www.w3.org/1999/xlink}href"
 _NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 
 
-def _check_xml(data: bytes) -> None:
+def _check_xml(data: bytes) -> bytes:
     """Well-formed XML with an ``<svg>`` root, a valid viewBox if any, and at most
     ``MAX_SEGMENTS`` worth of numbers in its geometry, checked with the C parser before
-    svgelements (pure Python, lenient) sees it."""
+    svgelements (pure Python, lenient) sees it. Returns the document svgelements is to read:
+    ``data``, or, where some of it is never drawn (``_undrawn``), the document without it."""
     try:
         root = ElementTree.fromstring(data)
     except (ElementTree.ParseError, ValueError) as exc:  # ValueError: e.g. NUL bytes, bad encodings
@@ -64,6 +65,71 @@ def _check_xml(data: bytes) -> None:
         _expanded_size(root)
     except RecursionError:
         raise InputError("the SVG nests elements too deeply") from None
+    return ElementTree.tostring(root) if _undrawn(root) else data
+
+
+SVG_NS = "http://www.w3.org/2000/svg"
+ElementTree.register_namespace("", SVG_NS)  # a pruned document is written back with SVG as its default namespace
+ElementTree.register_namespace("xlink", "http://www.w3.org/1999/xlink")
+NEVER_DRAWN = ("clipPath", "mask", "pattern", "marker", "symbol")  # drawn only where referenced, which is refused
+FEATURES = frozenset(f"http://www.w3.org/TR/SVG11/feature#{f}" for f in (
+    "SVG", "SVG-static", "CoreAttribute", "Structure", "BasicStructure", "ConditionalProcessing", "Image", "Style",
+    "ViewportAttribute", "Shape", "BasicText", "BasicPaintAttribute", "OpacityAttribute", "BasicGraphicsAttribute",
+    "Marker", "Gradient", "Pattern", "Clip", "BasicClip", "Mask"))  # what requiredFeatures may ask, as cairosvg reads it
+
+
+def _name(el) -> str:
+    return el.tag.rsplit("}", 1)[-1] if isinstance(el.tag, str) else ""
+
+
+def _passes(el) -> bool:
+    """SVG's conditional processing, as cairosvg does it: no ``requiredExtensions``, features
+    among ``FEATURES`` and a ``systemLanguage`` (if any) that the user's locale starts with."""
+    import locale
+
+    if el.get("requiredExtensions") is not None:
+        return False
+    features = el.get("requiredFeatures")
+    if features is not None and not set(features.split()) <= FEATURES:
+        return False
+    languages = el.get("systemLanguage")
+    here = locale.getlocale()[0] or ""
+    return languages is None or any(lang.strip() and here.startswith(lang.strip()) for lang in languages.split(","))
+
+
+def _undrawn(root) -> bool:
+    """Remove from ``root`` what an SVG renderer never draws and svgelements would: the contents
+    of ``NEVER_DRAWN`` elements, children that fail conditional processing, and every child of a
+    ``<switch>`` but its first that passes. What we cannot draw as SVG does is refused by name
+    (``InputError``): a nested ``<svg>`` viewport, a ``<use>`` of a ``<symbol>`` or an ``<svg>``
+    (their viewports clip and scale), a ``<use>`` of something inside a never-drawn element.
+    Returns whether anything was removed."""
+    ids = {el.get("id"): el for el in root.iter() if el.get("id")}
+    hidden: set[int] = set()
+    for el in root.iter():
+        if el is not root and _name(el) == "svg":
+            raise InputError("a nested <svg> viewport is not supported (draw its content in the outer <svg>)")
+        if _name(el) in NEVER_DRAWN:
+            hidden.update(id(e) for e in el.iter())
+    for el in root.iter():
+        ref = el.get("href") or el.get(_XLINK_HREF) or ""
+        target = ids.get(ref[1:]) if _name(el) == "use" and ref.startswith("#") else None
+        if target is not None and _name(target) in ("symbol", "svg"):
+            raise InputError(f"<use> of a <{_name(target)}> is not supported (its viewport scales and clips)")
+        if target is not None and id(target) in hidden:
+            raise InputError(f"<use> of {ref[:40]}, which is inside a <clipPath>, <mask>, <pattern> or <marker>, "
+                             "is not supported")
+    removed = False
+    for parent in list(root.iter()):
+        kept_one = False
+        for child in list(parent):
+            drop = _name(child) in NEVER_DRAWN or not _passes(child) or (_name(parent) == "switch" and kept_one)
+            if drop:
+                parent.remove(child)
+                removed = True
+            elif _name(parent) == "switch" and isinstance(child.tag, str):
+                kept_one = True
+    return removed
 
 
 EFFECTS = ("clip-path", "mask", "marker-start", "marker-mid", "marker-end", "marker", "filter")
@@ -133,8 +199,24 @@ def _refuse_paint(el) -> None:
     if el.fill is not None and el.fill.value is not None and el.fill.alpha < 255:
         raise InputError(f"<{kind}>: semi-transparent fills are not supported")
     opacity = el.values.get("opacity")
-    if opacity is not None and float(opacity) < 1:
+    if opacity is not None and _fraction(str(opacity), "opacity") < 1:
         raise InputError(f"<{kind}>: opacity below 1 is not supported")
+    for paint, drawn in (("fill", el.fill is not None and el.fill.value is not None), ("stroke", _stroked(el))):
+        alpha = el.values.get(f"{paint}-opacity")  # a percentage svgelements does not read: checked here
+        if drawn and alpha is not None and _fraction(str(alpha), f"{paint}-opacity") < 1:
+            raise InputError(f"<{kind}>: semi-transparent {paint}s are not supported")
+
+
+def _fraction(text: str, name: str) -> float:
+    """An SVG alpha value: a number or a percentage (SVG 2: ``50%`` is 0.5), clamped to [0, 1]."""
+    text = text.strip()
+    try:
+        value = float(text[:-1]) / 100 if text.endswith("%") else float(text)
+    except ValueError:
+        raise InputError(f"{name} {text[:40]!r} is not a number or a percentage") from None
+    if not math.isfinite(value):
+        raise InputError(f"{name} {text[:40]!r} is not finite")
+    return min(max(value, 0.0), 1.0)
 
 
 def _point(p) -> list[float]:
@@ -271,8 +353,7 @@ def from_svg(text: str | bytes) -> VectorImage:
     """
     import svgelements as se
 
-    data = text.encode("utf-8") if isinstance(text, str) else bytes(text)
-    _check_xml(data)
+    data = _check_xml(text.encode("utf-8") if isinstance(text, str) else bytes(text))
     try:
         doc = se.SVG.parse(io.BytesIO(data), reify=False)  # transforms are applied to our cubics (_transform)
     except Exception as exc:  # noqa: BLE001 - svgelements raises many types on odd documents

@@ -7,6 +7,8 @@ import json
 import shutil
 from pathlib import Path
 
+import torch
+
 from tests.helpers import TINY, png
 
 
@@ -91,3 +93,46 @@ def in_model_config_out_of_range(d, m):
     cfg["paths"] = 0
     (bad / "config.json").write_text(json.dumps(cfg))
     return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--model", str(bad)], None
+
+
+def _with_config(d, m, **changes):
+    bad = d / "model"
+    shutil.copytree(m, bad)
+    cfg = json.loads((bad / "config.json").read_text())
+    (bad / "config.json").write_text(json.dumps({**cfg, **changes}))
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--model", str(bad)], None
+
+
+def in_model_config_huge_sizes(d, m):
+    return _with_config(d, m, samples=10**6, max_segments=10**4)  # 6.7 GB before it was bounded
+
+
+def in_model_config_int_too_large(d, m):
+    return _with_config(d, m, latent=2**70)  # torch's randn(): argument 'size' failed to unpack
+
+
+def in_model_config_sparse(d, m):
+    args = _with_config(d, m)
+    with open(d / "model" / "config.json", "r+b") as f:
+        f.truncate(3 * 2**30)  # 3 GB, sparse: refused from its size, never read
+    return args
+
+
+def in_model_config_fifo(d, m):
+    import os
+
+    args = _with_config(d, m)
+    (d / "model" / "config.json").unlink()
+    os.mkfifo(d / "model" / "config.json")  # nobody writes: a blocking open would wait forever
+    return args
+
+
+def in_model_int8_weights(d, m):
+    from safetensors.torch import load_file, save_file
+
+    args = _with_config(d, m)
+    weights = d / "model" / "model.safetensors"
+    state = load_file(str(weights))
+    key = sorted(k for k, v in state.items() if v.is_floating_point())[0]
+    save_file({**state, key: state[key].to(torch.int8)}, str(weights))
+    return args

@@ -105,3 +105,34 @@ def in_render_onto_its_input(d, m):
 def in_output_is_directory(d, m):
     (d / "out.png").mkdir()
     return _render(d, _svg("M 1 1 L 9 1 L 9 9 Z"))
+
+
+_HEAD = '<svg xmlns="http://www.w3.org/2000/svg" width="10" height="10">'
+
+
+def in_render_nested_svg(d, m):
+    return _render(d, _HEAD + '<svg x="5" width="5" height="5" viewBox="0 0 1 1"><rect width="2" height="1"/></svg></svg>')
+
+
+def in_render_switch(d, m):
+    return _render(d, _HEAD + '<switch><rect requiredExtensions="x" width="10" height="10" fill="red"/>'
+                   '<rect width="5" height="5"/><rect x="5" width="5" height="5" fill="blue"/></switch></svg>')
+
+
+def in_render_link(d, m):
+    return _render(d, _HEAD + '<a href="https://example.org"><rect width="5" height="5"/></a></svg>')
+
+
+def in_render_symbol_through_use(d, m):
+    return _render(d, _HEAD + '<symbol id="s" viewBox="0 0 1 1"><rect width="1" height="1"/></symbol>'
+                   '<use href="#s" width="5" height="5"/></svg>')
+
+
+def in_render_definitions(d, m):
+    return _render(d, _HEAD + '<clipPath id="c"><rect width="10" height="10" fill="red"/></clipPath>'
+                   '<marker id="k"><rect width="10" height="10" fill="red"/></marker>'
+                   '<symbol id="s"><rect width="10" height="10" fill="red"/></symbol><rect width="5" height="5"/></svg>')
+
+
+def in_render_opacity_percent(d, m):
+    return _render(d, _HEAD + '<rect width="5" height="5" opacity="50%"/></svg>')

@@ -285,3 +285,40 @@ def in_preset_pixel_on_a_photo(d, m):
 def in_preset_scan_on_white(d, m):
     save(Image.new("RGB", (64, 64), (255, 255, 255)), d / "x.png")
     return ["vectorize", str(d / "x.png"), "-o", str(d / "out.svg"), "--preset", "scan"], None
+
+
+def in_near_black_16bit(d, m):
+    """16-bit samples all under 256 (a near-black picture): scaled by 65535, not read as 8-bit."""
+    arr = np.asarray(glyph_like(), np.uint16) // 2  # 0 and 127 of 65535
+    save(Image.fromarray(arr.astype(np.uint16)), d / "x.png")
+    return ["vectorize", str(d / "x.png"), "-o", str(d / "out.svg")], None
+
+
+def in_corrupt_exif(d, m):
+    """An EXIF block whose tag points past its end: Pillow's warnings stay off stderr."""
+    exif = b"Exif\x00\x00MM\x00\x2a\x00\x00\x00\x08\x00\x05\x01\x12\x00\x03\xff\xff\xff\xff" + b"\xff" * 10
+    save(glyph_like().convert("RGB"), d / "x.png", exif=exif)
+    return ["vectorize", str(d / "x.png"), "-o", str(d / "out.svg")], None
+
+
+def in_output_slash_onto_a_file(d, m):
+    """``-o existing.svg/``: a slash names a folder; the file there is not replaced."""
+    save(glyph_like(), d / "x.png")
+    (d / "existing.svg").write_text("someone's work")
+    return ["vectorize", str(d / "x.png"), "-o", f"{d / 'existing.svg'}/"], None
+
+
+def in_hard_edged_clip_art(d, m):
+    """Flat circles drawn without anti-aliasing at 384 px: a drawing of curves, not pixel art
+    (traced along its pixels it took 80 s and 75,196 segments)."""
+    from PIL import ImageDraw
+
+    rng = np.random.default_rng(1)
+    img = Image.new("RGB", (384, 384), "white")
+    draw = ImageDraw.Draw(img)
+    colors = [tuple(int(c) for c in rng.integers(0, 256, 3)) for _ in range(10)]
+    for i in range(120):
+        x, y, r = *rng.uniform(0, 384, 2), rng.uniform(3, 48)
+        draw.ellipse((x - r, y - r, x + r, y + r), fill=colors[i % 10])
+    save(img, d / "x.png")
+    return ["vectorize", str(d / "x.png"), "-o", str(d / "out.svg")], None
