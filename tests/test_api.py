@@ -184,3 +184,14 @@ def test_the_memory_budget_sets_the_work_size():
     assert small.work_pixels() == 2**29 // 256 and small.max_input_pixels() == 2**29 // 16
     with pytest.raises(ValueError, match="max_memory"):
         VectorizeOptions(max_memory=100 * 2**20)
+
+
+@pytest.mark.parametrize("field, value", [("parts", "bogus"), ("effort", "sketch"), ("colors", 0), ("tolerance", -1)])
+def test_bad_options_raise_the_documented_error(field, value):
+    """README: a bad input raises Im2VecError; VectorizeOptions raised a plain ValueError."""
+    from im2vec_cli.errors import ConfigError, Im2VecError
+    from im2vec_cli.options import VectorizeOptions
+
+    with pytest.raises(Im2VecError, match=field) as info:
+        VectorizeOptions(**{field: value})
+    assert isinstance(info.value, ConfigError) and isinstance(info.value, ValueError)  # still a ValueError too

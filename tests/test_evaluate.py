@@ -83,8 +83,8 @@ def test_eval_command_with_train_data(tmp_path):
 
 def test_eval_missing_train_data_is_one_error_line(tmp_path):
     model = make_tiny_model(tmp_path / "m")
-    (tmp_path / "t").mkdir()
-    Image.new("RGB", (32, 32), "white").save(tmp_path / "t" / "a.png")
+    (tmp_path / "t" / "test").mkdir(parents=True)
+    Image.new("RGB", (32, 32), "white").save(tmp_path / "t" / "test" / "a.png")
     res = CliRunner().invoke(cli, ["eval", "--model", model, "--data", str(tmp_path / "t"), "--train-data",
                                    str(tmp_path / "nope")])
     assert res.exit_code == 1 and res.stderr.startswith("Error:")

@@ -38,6 +38,7 @@ MODEL_AT_MOST = {"image_size": 256, "channels": 4, "latent": 1024, "paths": 64, 
                  "min_segments": 200, "max_segments": 200, "samples": 32, "levels": 6, "segment_predictor": 1024,
                  "path_pass_width": 128, "point_pass_width": 512, "point_smooth": 16}
 MAX_RENDER_WORK = 2**26  # paths x segments x samples x pixels of one picture's render (shipped models: 1.6-3.3 M)
+MAX_BATCH = 256  # TrainConfig.batch: four times the shipped runs' 64
 MAX_CONFIG_BYTES = 2**20  # a config file larger than this is refused unread (a 3 GB sparse one was read whole)
 
 
@@ -221,6 +222,8 @@ class TrainConfig(JsonConfig):
 
     def __post_init__(self):
         """Values a run cannot use are refused here, before any data loads."""
+        if self.batch > MAX_BATCH:  # memory grows with it before any step runs (a huge one reached 6.2 GB on 3 images)
+            raise ConfigError(f"TrainConfig.batch must be <= {MAX_BATCH}, got {self.batch}")
         for key in ("steps", "batch", "beta_warmup", "distill_images", "lookahead_k", "val_every", "ckpt_every", "preview_every",
                     "workers", "log_every", "prior_components"):
             if getattr(self, key) < 1:

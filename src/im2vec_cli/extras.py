@@ -10,7 +10,7 @@ from pathlib import Path
 import torch
 
 from .config import DEFAULT_COMPONENTS, DEFAULT_NEIGHBOURS, DEFAULT_SHRINK
-from .errors import ConfigError, ModelError
+from .errors import ConfigError, DataError, ModelError
 from .events import Encoding, Measuring, Skipped
 
 
@@ -26,13 +26,13 @@ def output_is_source(output, overwrite: bool, source) -> bool:
     """Whether ``output`` is the model's own folder ``source`` (updated in place, only with
     ``overwrite``); any other output is made whole, and one that holds files only with
     ``overwrite``. Checked before any work."""
-    from .model.pretrained import check_output_folder
+    from .files import check_output_folder
 
     if source is not None and Path(output).resolve() == Path(source).resolve():
         if not overwrite:
             raise ModelError(f"{output}: is the model's own folder; --overwrite updates it in place")
         return True
-    check_output_folder(output, overwrite, *([source] if source is not None else []))
+    check_output_folder(output, overwrite, *([source] if source is not None else []), error=ModelError)
     return False
 
 
@@ -56,7 +56,7 @@ def model_and_images(model, output, overwrite: bool, data_dir, emit):
     return source, model, in_place, data
 
 
-def fit_prior(data_dir, model, output, *, components: int = DEFAULT_COMPONENTS, seed: int = 0,
+def fit_prior(data_dir, model, output, *, components: int | None = None, seed: int = 0,
               overwrite: bool = False, shrink: float = DEFAULT_SHRINK, neighbours: int | None = None,
               on_event=None):
     """Fit the latent densities ``sample`` draws from to ``data_dir``'s images (``DATA/train`` when it
@@ -64,13 +64,18 @@ def fit_prior(data_dir, model, output, *, components: int = DEFAULT_COMPONENTS, 
     ``overwrite``): the Gaussian mixture (``components``, ``shrink``: ``model.prior.fit_prior``'s)
     and, unless ``neighbours`` is 0, the neighbour prior (``model.prior.fit_neighbours``; ``None``:
     ``DEFAULT_NEIGHBOURS``, fewer for a small set; 0 drops a stored one, fitted to other weights).
+    ``components=None``: ``DEFAULT_COMPONENTS``, fewer for a small set (at most half the images).
     Returns the ``LatentPrior``."""
     from .model.prior import fit_neighbours, posterior_means
     from .model.prior import fit_prior as fit
 
     emit = on_event or (lambda e: None)
     source, model, in_place, data = model_and_images(model, output, overwrite, data_dir, emit)
-    if components > max(1, len(data) // 2):
+    if len(data) < 2:
+        raise DataError(f"{data_dir}: a latent prior is fitted to at least 2 readable images, found {len(data)}")
+    if components is None:
+        components = min(DEFAULT_COMPONENTS, len(data) // 2)
+    elif components > max(1, len(data) // 2):
         raise ConfigError(f"components {components}: at most half the {len(data)} images")
     neighbours = _neighbours(neighbours, len(data), fewest=0)
     emit(Encoding(len(data)))

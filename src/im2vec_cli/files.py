@@ -20,7 +20,7 @@ import numpy as np
 import torch
 from PIL import Image, ImageOps
 
-from .errors import InputError
+from .errors import Im2VecError, InputError
 
 MAX_PIXELS = 64_000_000  # larger images are refused (decompression bombs)
 MIN_SIDE = 4  # smaller images carry no shape to vectorize
@@ -96,6 +96,20 @@ def holds_files(path: str | os.PathLike) -> bool:
     if path.is_symlink() or not path.is_dir():
         return True
     return any(path.iterdir())
+
+
+def check_output_folder(out_dir: str | Path, overwrite: bool, *inputs: str | Path,
+                        error: type[Im2VecError] = Im2VecError) -> None:
+    """Refuse (``error``) to make ``out_dir`` anew when it holds files (unless ``overwrite``) or
+    holds, or is, one of ``inputs`` (a run, model or source folder the work reads)."""
+    out = Path(out_dir).resolve()
+    for src in inputs:
+        src = Path(src).resolve()
+        if src == out or out in src.parents:
+            what = "is" if src == out else f"holds {src},"
+            raise error(f"{out_dir}: {what} the folder this reads; write to another folder")
+    if holds_files(out_dir) and not overwrite:
+        raise error(f"{out_dir}: holds files; --overwrite replaces the folder whole")
 
 
 def replace_folder(path: str | os.PathLike, write: Callable[[Path], object]) -> Path:

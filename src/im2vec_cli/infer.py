@@ -11,10 +11,10 @@ import dataclasses
 import numpy as np
 import torch
 
-from .errors import ModelError
+from .errors import ConfigError, ModelError
 from .frame import Placement, resize_square, to_model_frame
 from .model.vae import Decoded, Im2Vec
-from .options import PRIORS
+from .options import MAX_TEMPERATURE, PRIORS
 from .raster import line_controls
 from .trace import cleaned
 from .vector import VectorImage, VectorShape, from_tensors, resolve_overlaps
@@ -218,6 +218,8 @@ def sample_temperature(model, prior: str = "auto", temperature: float | None = N
     """The temperature ``prior_latents`` draws with: ``temperature``, or when ``None`` the one the
     stored prior keeps (``LatentPriorConfig.temperature``, ``NeighbourPriorConfig.temperature``), 1 for N(0, I)."""
     if temperature is not None:
+        if not 0 <= float(temperature) <= MAX_TEMPERATURE:  # NaN too: 1e300 made every latent infinite
+            raise ConfigError(f"temperature must be in [0, {MAX_TEMPERATURE:g}], got {temperature}")
         return float(temperature)
     which = resolve_prior(model, prior)
     return stored_prior(model, which).config.temperature if which != "normal" else 1.0

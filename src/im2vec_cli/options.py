@@ -11,6 +11,8 @@ import math
 import numbers
 from dataclasses import dataclass
 
+from .errors import ConfigError
+
 PARTS = ("clean", "model")  # `vectorize --parts`: clean outlines (default) or the model's own paths
 EFFORTS = ("draft", "fast", "best")  # `vectorize --effort`: refine.EFFORTS holds the settings of each
 PRESETS = ("auto", "scan", "logo", "line", "pixel", "photo")  # `vectorize --preset`: the kinds of trace.read
@@ -35,6 +37,7 @@ def parse_augment(spec: str) -> tuple[str, ...]:
 
 MEMORY_DEFAULT = 2 * 2**30  # `vectorize --max-memory`: the budget of one vectorize process...
 MEMORY_MIN = 768 * 2**20  # ...at least this
+MAX_TEMPERATURE = 100.0  # `sample --temperature`: a latent's spread this many times the prior's is far past any picture
 BASE_BYTES = 512 * 2**20  # the interpreter, torch and a model
 READ_BYTES_PER_PIXEL = 16  # a picture decoded (8-bit, twice while converting) and as float
 WORK_BYTES_PER_PIXEL = 256  # tracing and polishing, per pixel of the copy worked on (bench/hardening.py:
@@ -79,7 +82,8 @@ class VectorizeOptions:
         is vectorized at an area-averaged copy (``VectorizeOptions.work_pixels``, at most
         2048^2) and scaled back; the CLI refuses to read a picture it cannot hold.
 
-    Raises ``ValueError`` (one line, naming the field) when made with a value out of range.
+    Raises ``errors.ConfigError`` (an ``Im2VecError`` and a ``ValueError``: one line, naming the field)
+    when made with a value out of range.
     """
 
     refine: bool = True
@@ -98,28 +102,28 @@ class VectorizeOptions:
 
     def __post_init__(self) -> None:
         if self.effort not in EFFORTS:
-            raise ValueError(f"effort must be one of {list(EFFORTS)}, got {self.effort!r}")
+            raise ConfigError(f"effort must be one of {list(EFFORTS)}, got {self.effort!r}")
         if self.preset not in PRESETS:
-            raise ValueError(f"preset must be one of {list(PRESETS)}, got {self.preset!r}")
+            raise ConfigError(f"preset must be one of {list(PRESETS)}, got {self.preset!r}")
         if self.speckle is not None and not (_integer(self.speckle) and 0 <= self.speckle <= MAX_SPECKLE):
-            raise ValueError(f"speckle must be an integer number of pixels in [0, {MAX_SPECKLE}], got {self.speckle!r}")
+            raise ConfigError(f"speckle must be an integer number of pixels in [0, {MAX_SPECKLE}], got {self.speckle!r}")
         if self.parts not in PARTS:
-            raise ValueError(f"parts must be one of {list(PARTS)}, got {self.parts!r}")
+            raise ConfigError(f"parts must be one of {list(PARTS)}, got {self.parts!r}")
         if self.tolerance is not None and not _positive(self.tolerance):
-            raise ValueError(f"tolerance must be a positive number of pixels, got {self.tolerance!r}")
+            raise ConfigError(f"tolerance must be a positive number of pixels, got {self.tolerance!r}")
         if self.colors is not None and not (_integer(self.colors) and 1 <= self.colors <= 64):
-            raise ValueError(f"colors must be an integer in [1, 64], got {self.colors!r}")
+            raise ConfigError(f"colors must be an integer in [1, 64], got {self.colors!r}")
         if self.max_paths is not None and not (_integer(self.max_paths) and self.max_paths >= 1):
-            raise ValueError(f"max_paths must be an integer >= 1, got {self.max_paths!r}")
+            raise ConfigError(f"max_paths must be an integer >= 1, got {self.max_paths!r}")
         if self.segments is not None and self.segments != "auto" and not (_integer(self.segments)
                                                                           and self.segments >= 1):
-            raise ValueError(f"segments must be an integer >= 1 or 'auto', got {self.segments!r}")
+            raise ConfigError(f"segments must be an integer >= 1 or 'auto', got {self.segments!r}")
         if self.quality is not None and not _positive(self.quality):
-            raise ValueError(f"quality must be a positive number, got {self.quality!r}")
+            raise ConfigError(f"quality must be a positive number, got {self.quality!r}")
         if self.simplify_px is not None and not (_number(self.simplify_px) and self.simplify_px >= 0):
-            raise ValueError(f"simplify_px must be a number of pixels >= 0, got {self.simplify_px!r}")
+            raise ConfigError(f"simplify_px must be a number of pixels >= 0, got {self.simplify_px!r}")
         if self.max_memory is not None and not (_integer(self.max_memory) and self.max_memory >= MEMORY_MIN):
-            raise ValueError(f"max_memory must be a number of bytes >= {MEMORY_MIN // 2**20} MiB, got {self.max_memory!r}")
+            raise ConfigError(f"max_memory must be a number of bytes >= {MEMORY_MIN // 2**20} MiB, got {self.max_memory!r}")
 
     def work_pixels(self) -> int:
         """The most pixels of a picture worked on within the memory budget: a larger picture is

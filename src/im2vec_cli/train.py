@@ -55,7 +55,7 @@ from .model.pretrained import save_pretrained, save_priors
 from .model.prior import IMAGES_PER_COMPONENT, fit_neighbours, fit_prior, most_neighbours, posterior_means
 from .optim import Lookahead
 from .outline_aux import Outlines, trace_targets
-from .runtime import setup_distributed
+from .runtime import HeldSignals, setup_distributed
 from .train_eval import evaluate_l2, preview_grid
 
 MAX_NONFINITE_IN_A_ROW = 20  # skipped steps before training stops with an error
@@ -180,10 +180,8 @@ def train_step(state: TrainState, ddp_model: torch.nn.Module, train_x: torch.Ten
     for g in state.opt.param_groups:
         g["lr"] = sch["lr"]
     device = next(state.model.parameters()).device
-    if state.teacher is None:
-        idx, z_fit = torch.randint(len(train_x), (cfg.batch,), generator=state.gen), None
-    else:
-        idx, z_fit = state.teacher.draw(cfg.batch, state.gen)
+    idx, z_fit = ((torch.randint(len(train_x), (cfg.batch,), generator=state.gen), None) if state.teacher is None
+                  else state.teacher.draw(cfg.batch, state.gen))
     k = int(torch.randint(model_cfg.min_segments, model_cfg.max_segments + 1, (1,), generator=state.gen))
     x = augment_batch(train_x[idx].to(device).float() / 255, cfg.augment, state.gen)  # (B, 3, S, S)
     rec, kl, dec, mu = reconstruction_loss(ddp_model, x, k, sch["tau"], sample=True, supersample=cfg.supersample,
@@ -358,34 +356,36 @@ def _loop(state: TrainState, ddp_model, train_x, val_x, model_cfg: ModelConfig, 
     ckpt, main, bad_run = run_dir / "checkpoint.pt", rank == 0, 0  # bad_run: non-finite steps in a row
     state.model.train()
     log.t_last = time.perf_counter()  # the throughput counts training, not the set-up (a teacher's fit)
-    try:
-        while state.step < cfg.steps:
-            out = train_step(state, ddp_model, train_x, model_cfg, cfg, world)
-            step = state.step
-            last = step if _past(deadline, step, cfg.log_every, world, state.model) else cfg.steps
-            bad_run = 0 if out["finite"] else bad_run + 1
-            if not out["finite"]:
-                log(NonFinite(step, out["loss"], out["grad_norm"], bad_run, time.time()))
-                if bad_run >= MAX_NONFINITE_IN_A_ROW:
-                    raise TrainingError(
-                        f"the loss or gradient was not finite for {bad_run} steps in a row (up to step {step}); "
-                        f"the last good checkpoint is {ckpt}; try a lower --lr")
-            log.n_last += out["images"]
-            if _due(step, cfg.log_every, last):
-                log.train(step, out)
-            if main and _due(step, cfg.val_every, last):
-                log(validate(state, val_x, model_cfg, cfg))
-            if main and _due(step, cfg.preview_every, last):
-                atomic_write(run_dir / f"preview_{step:07d}.png",
-                             preview_grid(state.exported, val_x[:8], model_cfg.segments, cfg.tau_end))
-            if _due(step, cfg.ckpt_every, last):
+    with HeldSignals() as held:  # Ctrl-C and SIGTERM land between whole steps: the checkpoint resumes exactly
+        try:
+            while state.step < cfg.steps:
+                held.deliver()
+                out = train_step(state, ddp_model, train_x, model_cfg, cfg, world)
+                step = state.step
+                last = step if _past(deadline, step, cfg.log_every, world, state.model) else cfg.steps
+                bad_run = 0 if out["finite"] else bad_run + 1
+                if not out["finite"]:
+                    log(NonFinite(step, out["loss"], out["grad_norm"], bad_run, time.time()))
+                    if bad_run >= MAX_NONFINITE_IN_A_ROW:
+                        raise TrainingError(f"the loss or gradient was not finite for {bad_run} steps in a row (up "
+                                            f"to step {step}); the last good checkpoint is {ckpt}; try a lower --lr")
+                log.n_last += out["images"]
+                if _due(step, cfg.log_every, last):
+                    log.train(step, out)
+                if main and _due(step, cfg.val_every, last):
+                    log(validate(state, val_x, model_cfg, cfg))
+                if main and _due(step, cfg.preview_every, last):
+                    atomic_write(run_dir / f"preview_{step:07d}.png",
+                                 preview_grid(state.exported, val_x[:8], model_cfg.segments, cfg.tau_end))
+                if _due(step, cfg.ckpt_every, last):
+                    state.save(ckpt, model_cfg, cfg, rank, world)
+                if last < cfg.steps:
+                    log(TimeUp(step, cfg.steps, time.time()))
+                    break
+        except BaseException as exc:
+            if not isinstance(exc, Exception):  # interrupted (not failed): the last whole step is saved
                 state.save(ckpt, model_cfg, cfg, rank, world)
-            if last < cfg.steps:
-                log(TimeUp(step, cfg.steps, time.time()))
-                break
-    except KeyboardInterrupt:
-        state.save(ckpt, model_cfg, cfg, rank, world)
-        raise
+            raise
 
 
 def _past(deadline: float, step: int, every: int, world: int, model: torch.nn.Module) -> bool:

@@ -225,10 +225,12 @@ def test_a_worker_returns_a_failed_picture_in_its_place(model_dir):
     assert isinstance(out[1], VectorizeError) and str(out[1]) == "could not vectorize: image too small (2x2 pixels; at least 4 per side)"
 
 
-@pytest.mark.slow  # worker processes, then a real SIGTERM
-def test_sigterm_ends_a_worker_batch_cleanly(tmp_path, model_dir):
+@pytest.mark.slow  # worker processes, then a real SIGTERM or SIGHUP
+@pytest.mark.parametrize("signame, code, line", [("SIGTERM", 143, "Terminated."), ("SIGHUP", 129, "Hung up.")])
+def test_sigterm_ends_a_worker_batch_cleanly(tmp_path, model_dir, signame, code, line):
     """SIGTERM into `vectorize --jobs 2`: exit 143, one `Terminated.` line, no resource-tracker
-    warning, no traceback, no worker left, every SVG written complete and no temp file."""
+    warning, no traceback, no worker left, every SVG written complete and no temp file. SIGHUP
+    (a closed terminal) the same, exit 129 (it printed a worker's traceback and left 4 processes)."""
     import signal
     import time
 
@@ -242,10 +244,10 @@ def test_sigterm_ends_a_worker_batch_cleanly(tmp_path, model_dir):
     deadline = time.time() + 120
     while time.time() < deadline and not (out.exists() and any(out.glob("g*.svg"))):
         time.sleep(0.2)  # until the first SVGs are written (not only their temp files)
-    p.send_signal(signal.SIGTERM)
+    p.send_signal(getattr(signal, signame))
     err = p.communicate(timeout=30)[1]
-    assert p.returncode == 143, err
-    assert "resource_tracker" not in err and "Traceback" not in err and err.strip().endswith("Terminated."), err
+    assert p.returncode == code, err
+    assert "resource_tracker" not in err and "Traceback" not in err and err.strip().endswith(line), err
     time.sleep(3)
     left = subprocess.run(["pgrep", "-f", str(d)], capture_output=True, text=True).stdout.split()
     assert left == []

@@ -234,3 +234,61 @@ def test_vectorize_verbose_names_the_guess_without_refinement(tmp_path, model_di
     assert res.exit_code == 0, res.output
     (line,) = res.stderr.strip().splitlines()
     assert line.startswith(f"{tmp_path / 'w.png'}: {kind}; "), line
+
+
+def test_an_output_named_for_another_kind_is_refused(tmp_path, model_dir):
+    """`vectorize -o out.png` wrote an SVG into a .png, silently; `render -o x.svg` likewise a PNG."""
+    src = png(tmp_path / "a.png")
+    res = CliRunner().invoke(cli, ["vectorize", src, "-o", str(tmp_path / "out.png"), "--model", model_dir])
+    assert res.exit_code == 2 and "this writes SVG; give the output a .svg name" in res.stderr
+    assert not (tmp_path / "out.png").exists()
+    (tmp_path / "s.svg").write_text('<svg xmlns="http://www.w3.org/2000/svg" width="8" height="8"><rect width="4" '
+                                    'height="4"/></svg>')
+    res = CliRunner().invoke(cli, ["render", str(tmp_path / "s.svg"), "-o", str(tmp_path / "x.svg")])
+    assert res.exit_code == 2 and "this writes PNG" in res.stderr
+
+
+def test_encode_npy_of_one_image_to_a_file_name_writes_that_file(tmp_path, model_dir):
+    """`encode --format npy -o z.npy` made a folder named z.npy; for one image it is the file."""
+    src = png(tmp_path / "a.png")
+    res = CliRunner().invoke(cli, ["encode", src, "--format", "npy", "--no-fit", "-o", str(tmp_path / "z.npy"),
+                                   "--model", model_dir])
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "z.npy").is_file() and np.load(tmp_path / "z.npy").shape == (16,)
+    res = CliRunner().invoke(cli, ["encode", src, str(png(tmp_path / "b.png")), "--format", "npy", "--no-fit", "-o",
+                                   str(tmp_path / "zs"), "--model", model_dir])
+    assert res.exit_code == 0 and sorted(p.name for p in (tmp_path / "zs").iterdir()) == ["a.npy", "b.npy"]
+
+
+def test_eval_scores_a_test_split_or_says_it_does_not(tmp_path, model_dir):
+    """A dataset with train/ and no test/ is refused (its training images were scored silently);
+    a plain folder is scored whole with a warning."""
+    (tmp_path / "set" / "train").mkdir(parents=True)
+    png(tmp_path / "set" / "train" / "a.png", 32, 32)
+    res = CliRunner().invoke(cli, ["eval", "--model", model_dir, "--data", str(tmp_path / "set"), "-o",
+                                   str(tmp_path / "e.json")])
+    assert res.exit_code == 1 and "has train/ but no test/" in res.stderr and not (tmp_path / "e.json").exists()
+    (tmp_path / "plain").mkdir()
+    png(tmp_path / "plain" / "a.png", 32, 32)
+    res = CliRunner().invoke(cli, ["eval", "--model", model_dir, "--data", str(tmp_path / "plain"), "-o",
+                                   str(tmp_path / "e.json")])
+    assert res.exit_code == 0, res.output
+    assert "has no test/ folder: every image in it is scored" in res.stderr
+
+
+@pytest.mark.parametrize("command", ["sample", "interpolate", "encode"])
+def test_every_command_follows_the_thread_rule(tmp_path, model_dir, monkeypatch, command):
+    """`interpolate`, `encode` and `sample` used every thread (27-43 s instead of 3 s with the
+    other core busy): like `vectorize`, they take the free cores, one thread when only one is."""
+    import im2vec_cli.runtime as runtime
+
+    calls = []
+    monkeypatch.setattr(runtime, "free_cores", lambda *a, **k: 1)
+    monkeypatch.setattr(runtime, "set_threads", calls.append)
+    a, b = png(tmp_path / "a.png", 32, 32), png(tmp_path / "b.png", 32, 32)
+    args = {"sample": ["sample", "--n", "3", "-o", str(tmp_path / "s")],
+            "interpolate": ["interpolate", a, b, "--steps", "2", "--no-fit", "-o", str(tmp_path / "i")],
+            "encode": ["encode", a, b, "--no-fit", "-o", str(tmp_path / "z.jsonl")]}[command]
+    res = CliRunner().invoke(cli, args + ["--model", model_dir])
+    assert res.exit_code == 0, res.output
+    assert calls == [1]

@@ -112,3 +112,75 @@ def test_svg_set_with_colour_quantisation(tmp_path):
         img = np.asarray(Image.open(tmp_path / "out" / r["png"]))
         assert img.shape == (32, 32, 3) and len(np.unique(img.reshape(-1, 3), axis=0)) <= 3
         assert (tmp_path / "out" / r["svg"]).read_text().startswith("<svg")
+
+
+SQUARE = '<svg xmlns="http://www.w3.org/2000/svg" width="8" height="8"><rect width="4" height="4"/></svg>'
+
+
+def test_svg_sources_beyond_their_bounds_are_skipped_not_followed(tmp_path):
+    """A gzip bomb (1.4 MB reached 4.6 GB), a <use> fan-out (past 60 s), a FIFO among the
+    sources (it waited forever) and an entity expansion are each skipped, named in the report,
+    and the good SVG is built; nothing hangs or grows."""
+    import os
+
+    src = tmp_path / "src"
+    src.mkdir()
+    (src / "good.svg").write_text(SQUARE)
+    bomb = SQUARE.replace("</svg>", "<!--" + " " * (64 * 2**20) + "--></svg>").encode()
+    (src / "bomb.svg").write_bytes(gzip.compress(bomb, 9))
+    fan = ('<svg xmlns="http://www.w3.org/2000/svg" xmlns:xlink="http://www.w3.org/1999/xlink" width="8" height="8">'
+           '<defs><rect id="l0" width="1" height="1"/>'
+           + "".join(f'<g id="l{i}">' + f'<use xlink:href="#l{i - 1}"/>' * 10 + "</g>" for i in range(1, 8))
+           + '</defs><use xlink:href="#l7"/></svg>')
+    (src / "fan.svg").write_text(fan)
+    (src / "entity.svg").write_text('<!DOCTYPE svg [<!ENTITY a "' + "x" * 1000 + '">]>' + SQUARE.replace(
+        "</svg>", "<desc>" + "&a;" * 1000 + "</desc></svg>"))
+    os.mkfifo(src / "fifo.svg")
+    report = build_svg_set(tmp_path / "out", src, size=16)
+    assert report["images"] == 1
+    reasons = {Path(s["svg"]).name: s["reason"] for s in report["skipped"]}
+    assert "inflates to more than 32 MiB" in reasons["bomb.svg"]
+    assert "too many elements once <use> is expanded" in reasons["fan.svg"]
+    assert "declares XML entities" in reasons["entity.svg"]
+    assert "a FIFO, where a SVG file should be" in reasons["fifo.svg"]
+
+
+def test_an_idx_bomb_is_refused_from_its_header(tmp_path):
+    """A gzip IDX file whose header asks for 4 GB (a 1.4 MB file reached 3.1 GB): refused before
+    its data is inflated; one whose data does not match its header: refused after reading at
+    most its header's size and a byte."""
+    from im2vec_cli.data.mnist import read_idx
+
+    with gzip.open(tmp_path / "bomb.gz", "wb") as f:
+        f.write(b"\x00\x00\x08\x03" + struct.pack(">3I", 100000, 200, 200) + bytes(2**22))
+    with pytest.raises(DataError, match="asks for 4,000,000,000 bytes"):
+        read_idx(tmp_path / "bomb.gz")
+    with gzip.open(tmp_path / "long.gz", "wb") as f:
+        f.write(b"\x00\x00\x08\x03" + struct.pack(">3I", 10, 28, 28) + bytes(2**22))
+    with pytest.raises(DataError, match="size 7841 does not match its header"):
+        read_idx(tmp_path / "long.gz")
+
+
+def test_data_into_a_folder_that_holds_files_is_refused_then_replaced_whole(tmp_path):
+    """`data svg OUT` again with another source: refused without --overwrite; with it, OUT is the
+    new set alone (the first source's PNGs stayed in its splits); never onto its own source."""
+    from click.testing import CliRunner
+
+    from im2vec_cli.cli import cli
+
+    first, second = tmp_path / "first", tmp_path / "second"
+    for folder, n in ((first, 20), (second, 5)):
+        folder.mkdir()
+        for i in range(n):
+            (folder / f"{folder.name}{i}.svg").write_text(SQUARE)
+    out = tmp_path / "out"
+    assert CliRunner().invoke(cli, ["data", "svg", str(out), "--src", str(first), "--size", "16"]).exit_code == 0
+    r = CliRunner().invoke(cli, ["data", "svg", str(out), "--src", str(second), "--size", "16"])
+    assert r.exit_code == 1 and "holds files; --overwrite replaces the folder whole" in r.stderr
+    r = CliRunner().invoke(cli, ["data", "svg", str(out), "--src", str(second), "--size", "16", "--overwrite"])
+    assert r.exit_code == 0, r.output
+    pngs = sorted(p.name for p in out.rglob("*.png"))
+    assert len(pngs) == 5 and all(n.startswith("second") for n in pngs)
+    assert len((out / "manifest.jsonl").read_text().splitlines()) == 5
+    r = CliRunner().invoke(cli, ["data", "svg", str(tmp_path), "--src", str(second), "--overwrite"])
+    assert r.exit_code == 1 and "the folder this reads" in r.stderr and second.is_dir()

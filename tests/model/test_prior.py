@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import torch
 from click.testing import CliRunner
+from PIL import Image
 
 import im2vec_cli as iv
 from im2vec_cli.cli import cli
@@ -358,3 +359,21 @@ def test_fit_prior_and_train_features_commands(tmp_path, model):
     assert res.exit_code == 0, res.output
     e = json.loads((tmp_path / "e.json").read_text())
     assert 0 <= e["precision"] <= 1 and 0 <= e["recall"] <= 1 and 0 <= e["confident"] <= 1 and e["test_images"] == 20
+
+
+def test_fit_prior_on_too_few_images_names_the_images_not_an_option_not_given(tmp_path, model):
+    """One image: one line saying a prior needs two (it blamed `--components 10`, which was not
+    given); three images and no --components: fewer components, as many as the images allow."""
+    _, folder = model
+    data = tmp_path / "one"
+    data.mkdir()
+    synth = synthetic_shapes(3, 32)
+    Image.fromarray(synth[0].permute(1, 2, 0).numpy()).save(data / "a.png")
+    res = CliRunner().invoke(cli, ["fit-prior", str(data), "--model", folder, "-o", str(tmp_path / "p1")])
+    assert res.exit_code == 1 and "--components" not in res.output
+    assert res.stderr.strip() == f"Error: {data}: a latent prior is fitted to at least 2 readable images, found 1"
+    for i in (1, 2):
+        Image.fromarray(synth[i].permute(1, 2, 0).numpy()).save(data / f"{i}.png")
+    res = CliRunner().invoke(cli, ["fit-prior", str(data), "--model", folder, "-o", str(tmp_path / "p3")])
+    assert res.exit_code == 0, res.output
+    assert iv.load_model(str(tmp_path / "p3"), "cpu").latent_prior.config.components == 1

@@ -1,7 +1,7 @@
 """The ``im2vec`` click group: library errors become one ``Error:`` line and exit 1.
 
 Exit codes: 0 success; 1 an error (bad input, bad model, failed write; some files of a
-batch failed); 2 bad usage; 130 interrupted (Ctrl-C); 143 terminated (SIGTERM).
+batch failed); 2 bad usage; 130 interrupted (Ctrl-C); 143 terminated (SIGTERM); 129 hung up (SIGHUP).
 """
 
 from __future__ import annotations
@@ -17,16 +17,24 @@ from .. import __version__
 from ..errors import Im2VecError, describe
 
 EXIT_HELP = ("Exit codes: 0 ok, 1 error (or some files of a batch failed), 2 bad usage, 130 interrupted, "
-             "143 terminated.")
+             "143 terminated, 129 hung up.")
 
 
 class Terminated(BaseException):
-    """SIGTERM, raised in the main thread as Ctrl-C raises ``KeyboardInterrupt``: the work in
-    flight stops through every ``finally`` (worker processes ended, temp files removed)."""
+    """SIGTERM or SIGHUP (``signum``), raised in the main thread as Ctrl-C raises
+    ``KeyboardInterrupt``: the work in flight stops through every ``finally`` (worker processes
+    ended, temp files removed)."""
+
+    def __init__(self, signum: int = signal.SIGTERM):
+        super().__init__(signum)
+        self.signum = signum
 
 
 def _terminated(signum, frame):
-    raise Terminated
+    raise Terminated(signum)
+
+
+ENDING = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))  # as Ctrl-C
 
 
 class Im2VecGroup(click.Group):
@@ -34,11 +42,12 @@ class Im2VecGroup(click.Group):
     SIGTERM and Ctrl-C end a command cleanly (exit 143 and 130)."""
 
     def invoke(self, ctx):
-        before = signal.signal(signal.SIGTERM, _terminated)
+        before = {signum: signal.signal(signum, _terminated) for signum in ENDING}
         try:
             return self._invoke(ctx)
         finally:
-            signal.signal(signal.SIGTERM, before)
+            for signum, handler in before.items():
+                signal.signal(signum, handler)
 
     def _invoke(self, ctx):
         try:
@@ -53,9 +62,9 @@ class Im2VecGroup(click.Group):
         except KeyboardInterrupt:
             click.echo("Interrupted.", err=True)
             ctx.exit(130)
-        except Terminated:
-            click.echo("Terminated.", err=True)
-            ctx.exit(143)
+        except Terminated as exc:
+            click.echo("Terminated." if exc.signum == signal.SIGTERM else "Hung up.", err=True)
+            ctx.exit(128 + exc.signum)  # 143 for SIGTERM, 129 for SIGHUP
         except Exception as exc:  # noqa: BLE001 - never a traceback: a dependency's error, memory running out
             fail(ctx, describe(exc))
 

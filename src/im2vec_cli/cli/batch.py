@@ -106,7 +106,19 @@ def names_folder(output: str) -> bool:
     return slash or path.is_dir()
 
 
-def check_output_folder(output: str) -> None:
+RASTER_SUFFIXES = (".png", ".jpg", ".jpeg", ".gif", ".webp", ".bmp", ".tif", ".tiff")
+
+
+def refuse_misnamed(output: str, writes: str) -> None:
+    """A usage error when the file ``-o`` names says, by its suffix, another kind than the command
+    ``writes`` (``"SVG"`` or ``"PNG"``): `vectorize -o out.png` wrote an SVG into a .png, silently."""
+    suffix = Path(output).suffix.lower()
+    wrong = suffix in RASTER_SUFFIXES if writes == "SVG" else suffix in (".svg", ".svgz")
+    if output != "-" and wrong:
+        raise click.UsageError(f"-o {output}: this writes {writes}; give the output a .{writes.lower()} name")
+
+
+def check_writable_folder(output: str) -> None:
     """Make the output folder of several inputs and check that a file can be written there, once,
     before any work: a read-only folder, a path through a file or a file where the folder should
     be is one error line, not one per picture."""

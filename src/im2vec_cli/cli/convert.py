@@ -11,21 +11,21 @@ from ..errors import Im2VecError
 from ..options import EFFORTS, MAX_SPECKLE, PARTS, PRESETS, VectorizeOptions
 from .app import EXIT_HELP, cli, starting_up, warn
 from .batch import (
-    check_output_folder,
+    check_writable_folder,
     dedupe_inputs,
     expand_inputs,
     names_folder,
     plan_outputs,
+    refuse_misnamed,
     refuse_overwrite,
     run_batch,
 )
-from .options import BYTES, Finite, load_model, model_options, nonempty, parse_segments
+from .options import BYTES, Finite, load_model, model_options, nonempty, parse_segments, set_threads_for
 from .streams import load_input_image, read_input, write_output
 
 VECTORIZE_CHUNK = 32  # images per batch (one forward pass, one refinement batch): bounded memory, written as done
 JOBS_MIN_IMAGES = 64  # --jobs auto: worker processes (their start-up, about 3 s each) pay from this many inputs
 MAX_AUTO_JOBS = 8  # --jobs auto: at most this many (each holds the model and about 0.5 GB)
-MAX_SVG_BYTES = 32 * 2**20  # `render` input: an SVG larger than this is refused while reading
 
 
 @cli.command(epilog=EXIT_HELP)
@@ -101,11 +101,12 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, toleranc
     dests, more = plan_outputs(items, output, ".svg", single)
     notes += more
     if not single or names_folder(output):
-        check_output_folder(output)  # once, before the model loads: not one error per picture
+        check_writable_folder(output)  # once, before the model loads: not one error per picture
+    else:
+        refuse_misnamed(output, "SVG")
+    free = set_threads_for(len(items))
     with starting_up():  # (load_model pauses the collector too)
         from .. import api, runtime
-    free = runtime.free_cores() if len(items) > 1 else 1  # before torch runs anything
-    runtime.set_threads(runtime.intra_op_threads(len(items), free=free))
     model = load_model(model_name, device, seed)
     many = (refine or parts == "clean") and len(items) > 1  # work per picture beyond the batched forward pass
     options = VectorizeOptions(refine=refine, effort=effort, segments=k, quality=quality, max_paths=max_paths,
@@ -269,16 +270,19 @@ def encode(ctx, inputs, output, fmt, fit, model_name, device, seed):
 
     items, notes = dedupe_inputs(expand_inputs(inputs))
     if fmt == "npy" and output == "-":
-        raise click.UsageError("--format npy needs -o DIR")
-    if fmt == "npy":
-        dests, more = plan_outputs([(i if i != "-" else "stdin.png", r) for i, r in items], output, ".npy", False)
+        raise click.UsageError("--format npy needs -o DIR (or -o FILE.npy for one image)")
+    if fmt == "npy":  # one image and -o z.npy: that file (it made a folder z.npy); else a folder of them
+        single = len(inputs) == 1 and items[0][1] is None and output.lower().endswith(".npy") and not names_folder(output)
+        dests, more = plan_outputs([(i if i != "-" else "stdin.png", r) for i, r in items], output, ".npy", single)
         where = dict(zip((item for item, _ in items), dests))
         notes += more
-        check_output_folder(output)
+        if not single:
+            check_writable_folder(output)
     else:
         refuse_overwrite([output], [item for item, _ in items])
     for note in notes:
         warn(note)
+    set_threads_for(len(items))
     model = load_model(model_name, device, seed)
     lines = []
 
@@ -320,7 +324,9 @@ def render(svg_file, output, scale, tau):
     """Render an SVG of closed cubic paths to PNG with im2vec's own differentiable rasterizer."""
     from ..files import tensor_to_png
     from ..vector import from_svg, render_vector
+    from ..vector.document import MAX_SVG_BYTES, read_svg_bytes
 
     refuse_overwrite([output], [svg_file])
-    image = from_svg(read_input(svg_file, limit=MAX_SVG_BYTES))
+    refuse_misnamed(output, "PNG")
+    image = from_svg(read_svg_bytes(read_input(svg_file, limit=MAX_SVG_BYTES), svg_file))
     write_output(output, tensor_to_png(render_vector(image, scale=scale, tau=tau)))

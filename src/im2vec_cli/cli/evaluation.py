@@ -114,6 +114,7 @@ def eval_cmd(data_dir, limit, train_dir, samples, pairs, segments, fit, output, 
         raise click.UsageError("--fit: the ImageVAE baseline draws pixels, it has no paths to fit")
     res = {"model": getattr(model, "name", model_name), "arch": model.config.arch}
     skipped = lambda msg: warn(f"skipped {msg}")  # noqa: E731
+    _check_test_split(data_dir)
     files = eval_files(data_dir, limit, seed, on_skip=skipped)
     res.update(reconstruction_l2(model, files, segments=k, on_skip=skipped, fit=fit), **({"fit": True} if fit else {}))
     if train_dir:
@@ -135,3 +136,16 @@ def eval_cmd(data_dir, limit, train_dir, samples, pairs, segments, fit, output, 
         write_output(plot, sweep_plot(series, f"{res['model']}: {res['images']} test images"))
     if markdown:
         write_output(markdown, markdown_table(res, bool(train_dir)))
+
+
+def _check_test_split(data_dir) -> None:
+    """`eval` scores a dataset's test split: a dataset with train/ but no test/ is refused, and a
+    plain folder of images is scored whole, with a warning (it was scored silently, training
+    images included)."""
+    from pathlib import Path
+
+    if (Path(data_dir) / "test").is_dir():
+        return
+    if (Path(data_dir) / "train").is_dir():
+        raise Im2VecError(f"{data_dir}: has train/ but no test/; eval scores the test split (give a folder with test/)")
+    warn(f"{data_dir} has no test/ folder: every image in it is scored, any the model trained on included")

@@ -5,10 +5,10 @@ from __future__ import annotations
 import click
 
 from ..errors import Im2VecError
-from ..options import PARTS, PRIORS
+from ..options import MAX_TEMPERATURE, PARTS, PRIORS
 from .app import EXIT_HELP, cli
 from .batch import refuse_overwrite
-from .options import Finite, load_model, model_options, nonempty, parse_segments
+from .options import Finite, load_model, model_options, nonempty, parse_segments, set_threads_for
 from .streams import load_input_image, make_folder, write_output
 
 
@@ -17,7 +17,7 @@ from .streams import load_input_image, make_folder, write_output
 @click.option("-o", "--output", default="samples", show_default=True, callback=nonempty,
               help="Output folder (- with --n 1: the SVG to stdout).")
 @click.option("--segments", default=None, help="Cubic segments per path (default: the model's).")
-@click.option("--temperature", type=Finite(0), default=None,
+@click.option("--temperature", type=Finite(0, MAX_TEMPERATURE), default=None,
               help="Spread of the draws: the standard deviations of fitted and normal (0: the fitted prior's "
                    "component means), the step towards a neighbour (1: up to halfway; 0: the training latents "
                    "themselves); default: the one the prior stores, 1 for N(0, I).")
@@ -33,6 +33,7 @@ def sample(count, output, segments, temperature, prior, parts, model_name, devic
     from .. import api
 
     check_set_output(output, count)
+    set_threads_for(count)
     model = load_model(model_name, device, seed)
     k = parse_segments(segments)
     z = api.prior_latents(count, model, seed=seed, temperature=temperature, prior=prior)
@@ -82,9 +83,15 @@ def latent_from(model, item: str):
     low = item.lower()
     if low.endswith(".npy"):
         try:
-            z = torch.from_numpy(np.load(item, allow_pickle=False)).float().view(-1)
-        except (OSError, ValueError) as exc:
+            arr = np.load(item, allow_pickle=False)
+        except (OSError, ValueError, EOFError) as exc:
             raise Im2VecError(f"{item}: not a readable .npy latent ({exc})") from None
+        if not isinstance(arr, np.ndarray):  # an .npz archive under an .npy name
+            arr.close()
+            raise Im2VecError(f"{item}: an .npz archive, not one latent array (`im2vec encode --format npy` writes those)")
+        if arr.dtype.kind not in "fiu":  # strings, objects, complex numbers: no latent (complex was cast silently)
+            raise Im2VecError(f"{item}: holds {arr.dtype} values, where a latent holds real numbers")
+        z = torch.from_numpy(arr.astype(np.float32)).view(-1)
     elif low.endswith((".json", ".jsonl")):
         try:
             with open(item) as f:
@@ -146,6 +153,7 @@ def interpolate(a, b, steps, output, segments, animate, parts, fit, model_name, 
     k = parse_segments(segments)
     if k == "auto":
         raise click.BadParameter("auto is for vectorize: every frame of a morph has one count", param_hint="--segments")
+    set_threads_for(steps + 2)
     model = load_model(model_name, device, seed)
     za, zb = endpoints(model, [a, b], fit, k)
     write_set(output, "frame", api.interpolate(za, zb, model, steps=steps, segments=k, parts=parts), steps + 2)

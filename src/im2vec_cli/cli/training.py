@@ -223,8 +223,9 @@ def export(run_dir, output, half, overwrite):
 @click.option("-o", "--output", required=True, callback=nonempty,
               help="Write the model with its prior to this folder (the model's own: its prior replaced, with --overwrite).")
 @click.option("--overwrite", is_flag=True, help="Replace -o whole when it holds files (or the prior of the model's own folder).")
-@click.option("--components", type=click.IntRange(1, 1000), default=DEFAULT_COMPONENTS, show_default=True,
-              help="Gaussians of the mixture (1: one full-covariance Gaussian).")
+@click.option("--components", type=click.IntRange(1, 1000), default=None,
+              help=f"Gaussians of the mixture (1: one full-covariance Gaussian). [{DEFAULT_COMPONENTS}, at most half "
+                   "the images]")
 @click.option("--shrink", type=click.FloatRange(0, 10), default=DEFAULT_SHRINK, show_default=True,
               help="Added to each Gaussian's variances, in units of the latents' mean variance: larger spreads each "
                    "over pictures like its own (see bench/prior_components.py).")

@@ -53,20 +53,32 @@ def load_pickle(path: str | Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         raise DataError(f"{path}: not an MNIST pickle ({exc})") from None
 
 
+MAX_IDX_BYTES = 2**28  # an IDX file's data (MNIST's largest: 47 MB): its header is checked before more is read
+
+
 def read_idx(path: str | Path) -> np.ndarray:
-    """Read an IDX file (optionally gzipped): uint8 images ``(N, H, W)`` or labels ``(N,)``."""
+    """Read an IDX file (optionally gzipped): uint8 images ``(N, H, W)`` or labels ``(N,)``.
+    The header is read first and its size checked against ``MAX_IDX_BYTES`` and the file's,
+    before the data is read or inflated (a 1.4 MB gzip bomb reached 3.1 GB)."""
     path = Path(path)
-    raw = path.read_bytes()
-    if raw[:2] == b"\x1f\x8b":
-        raw = gzip.decompress(raw)
-    if len(raw) < 4 or raw[0] != 0 or raw[1] != 0 or raw[2] != 0x08:
-        raise DataError(f"{path}: not an unsigned-byte IDX file")
-    ndim = raw[3]
-    dims = struct.unpack(f">{ndim}I", raw[4 : 4 + 4 * ndim])
-    data = np.frombuffer(raw, np.uint8, offset=4 + 4 * ndim)
-    if data.size != int(np.prod(dims)):
-        raise DataError(f"{path}: size {data.size} does not match its header {dims}")
-    return data.reshape(dims)
+    try:
+        with open(path, "rb") as raw:
+            zipped = raw.read(2) == b"\x1f\x8b"
+            raw.seek(0)
+            f = gzip.GzipFile(fileobj=raw) if zipped else raw
+            head = f.read(4)
+            if len(head) < 4 or head[:3] != b"\x00\x00\x08":
+                raise DataError(f"{path}: not an unsigned-byte IDX file")
+            dims = struct.unpack(f">{head[3]}I", f.read(4 * head[3]).ljust(4 * head[3], b"\x00"))
+            size = int(np.prod(dims, dtype=np.int64))
+            if size > MAX_IDX_BYTES:
+                raise DataError(f"{path}: its header {dims} asks for {size:,} bytes, over {MAX_IDX_BYTES:,}")
+            data = f.read(size + 1)
+    except (OSError, EOFError, struct.error) as exc:
+        raise DataError(f"{path}: unreadable IDX file ({exc})") from None
+    if len(data) != size:
+        raise DataError(f"{path}: size {len(data)} does not match its header {dims}")
+    return np.frombuffer(data, np.uint8).reshape(dims)
 
 
 def load_idx_dir(folder: str | Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:

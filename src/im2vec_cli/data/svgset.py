@@ -12,9 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import DataError
-from ..files import atomic_write, encode_png
+from ..errors import DataError, InputError
+from ..files import atomic_write, encode_png, read_regular
 from ..vector import rasterize_svg
+from ..vector.document import MAX_SVG_BYTES, read_svg_bytes
 from .fonts import split_of
 
 
@@ -44,9 +45,12 @@ def build_svg_set(out: str | Path, src: str | Path, *, size: int = 128, colors: 
     rows, skipped = [], []
     for name, f in progress(list(names.items())) if progress else names.items():
         split = split_of(name)
-        try:
-            data = f.read_bytes()
+        try:  # a regular file (never waited on), bounded once inflated, its <use> fan-out bounded (check_bounds)
+            data = read_svg_bytes(read_regular(f, MAX_SVG_BYTES, what="SVG file"), str(f))
             png = _render(data, size, colors)
+        except InputError as exc:
+            skipped.append({"svg": str(f), "reason": str(exc)[:200]})
+            continue
         except Exception as exc:  # cairosvg raises many types on bad input; report, never crash
             skipped.append({"svg": str(f), "reason": f"{type(exc).__name__}: {exc}"[:200]})
             continue

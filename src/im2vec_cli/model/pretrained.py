@@ -13,7 +13,7 @@ import torch
 from ..checkpoint import load_checkpoint
 from ..config import ModelConfig
 from ..errors import ModelError
-from ..files import atomic_write, holds_files, replace_folder
+from ..files import atomic_write, check_output_folder, replace_folder
 from ..options import GROWABLE
 from . import build_model
 from .encoder import Feedback, PathPass
@@ -95,7 +95,10 @@ def resolve_model(name_or_dir: str | os.PathLike) -> Path:
         return p  # not a model: its missing config.json is the error to show
     known = sorted({d.name for base in (REPO_MODELS, PACKAGE_MODELS) if base.is_dir() for d in base.iterdir()
                     if (d / "config.json").is_file()})
-    raise ModelError(f"unknown model {name!r} (not a directory; shipped models: {', '.join(known) or 'none'})")
+    if not known:  # an install without its models (a wheel built without them, a copied package)
+        raise ModelError(f"unknown model {name!r}: no models are installed; give --model a model folder, or set "
+                         "IM2VEC_MODELS to a folder of them (a checkout's models/)")
+    raise ModelError(f"unknown model {name!r} (not a directory; shipped models: {', '.join(known)})")
 
 
 def from_pretrained(name_or_dir: str | os.PathLike = DEFAULT_MODEL, device: str | torch.device = "cpu"):
@@ -163,7 +166,7 @@ def export_checkpoint(run_dir: str | Path, out_dir: str | Path, *, half: bool = 
 
     Returns the folder and the step the checkpoint was taken at.
     """
-    check_output_folder(out_dir, overwrite, run_dir)
+    check_output_folder(out_dir, overwrite, run_dir, error=ModelError)
     state = load_checkpoint(Path(run_dir) / "checkpoint.pt")
     model = build_model(ModelConfig.from_dict(state["model_config"]))
     if state.get("ema") is not None and not raw:  # a run with TrainConfig.ema exports the averaged weights
@@ -178,21 +181,6 @@ def export_checkpoint(run_dir: str | Path, out_dir: str | Path, *, half: bool = 
         if prior is not None and prior.config.step == int(state["step"]):  # fitted by `train` to these weights
             setattr(model, name, prior)
     return replace_folder(out_dir, lambda tmp: save_pretrained(model, tmp, half=half)), int(state["step"])
-
-
-def check_output_folder(out_dir: str | Path, overwrite: bool, *inputs: str | Path) -> None:
-    """Refuse to make ``out_dir`` anew when it holds files (unless ``overwrite``) or holds, or
-    is, one of ``inputs`` (a run or model folder the work reads)."""
-    out = Path(out_dir).resolve()
-    for src in inputs:
-        src = Path(src).resolve()
-        if src == out or out in src.parents:
-            what = "is" if src == out else f"holds {src},"
-            raise ModelError(f"{out_dir}: {what} the folder this reads; write to another folder")
-    if holds_files(out_dir) and not overwrite:
-        raise ModelError(f"{out_dir}: holds files; --overwrite replaces the folder whole")
-
-
 
 
 def grow_state(state: dict[str, torch.Tensor], old: ModelConfig, new: ModelConfig,

@@ -97,7 +97,8 @@ def _over_white(px: np.ndarray) -> np.ndarray:
 
 
 def rasterize_svg(text: str | bytes, width: int, height: int) -> np.ndarray:
-    """Render SVG text with cairosvg at ``width x height`` over white.
+    """Render SVG text with cairosvg at ``width x height`` over white, once its size and
+    nesting are checked (``document.check_bounds``: else one ``InputError`` line).
 
     Read from cairo's own pixel buffer (premultiplied ARGB32), not through a PNG: half the
     time at 64 px, and no unpremultiply rounding.
@@ -108,7 +109,10 @@ def rasterize_svg(text: str | bytes, width: int, height: int) -> np.ndarray:
     from cairosvg.parser import Tree
     from cairosvg.surface import PNGSurface
 
+    from .document import check_bounds
+
     data = text.encode() if isinstance(text, str) else text
+    check_bounds(data)  # no entity expansion, no <use> fan-out: cairosvg bounds neither
     surface = PNGSurface(Tree(bytestring=data), None, 96, output_width=width, output_height=height).cairo
     surface.flush()
     h, w = surface.get_height(), surface.get_width()

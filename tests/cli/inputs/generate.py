@@ -65,3 +65,25 @@ def in_fit_with_a_value(d, m):
 def in_encode_no_fit_garbage(d, m):
     (d / "a.png").write_bytes(b"not a png")
     return ["encode", str(d / "a.png"), "--no-fit", "-o", str(d / "out.jsonl")], None
+
+
+def in_latent_npz(d, m):
+    """An .npz archive under an .npy name (it was `TypeError: expected np.ndarray (got NpzFile)`)."""
+    with open(d / "z.npy", "wb") as f:
+        np.savez(f, z=np.zeros(16, np.float32))
+    return ["interpolate", png(d / "a.png"), str(d / "z.npy"), "-o", str(d / "outdir")], None
+
+
+def in_latent_strings(d, m):
+    np.save(d / "z.npy", np.array(["a"] * 16))
+    return ["interpolate", png(d / "a.png"), str(d / "z.npy"), "-o", str(d / "outdir")], None
+
+
+def in_latent_complex(d, m):
+    """Complex numbers (they were cast to their real parts with a Python warning)."""
+    np.save(d / "z.npy", np.ones(16, np.complex64) * 1j)
+    return ["interpolate", png(d / "a.png"), str(d / "z.npy"), "-o", str(d / "outdir")], None
+
+
+def in_temperature_huge(d, m):
+    return ["sample", "--temperature", "1e300", "-o", str(d / "outdir")], None

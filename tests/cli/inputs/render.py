@@ -136,3 +136,25 @@ def in_render_definitions(d, m):
 
 def in_render_opacity_percent(d, m):
     return _render(d, _HEAD + '<rect width="5" height="5" opacity="50%"/></svg>')
+
+
+def in_render_entities(d, m):
+    """Quadratic entity expansion (a 30 MB one took 5.8 GB): entity declarations are refused."""
+    return _render(d, '<!DOCTYPE svg [<!ENTITY a "' + "x" * 10000 + '">]>' + _HEAD
+                   + "<desc>" + "&a;" * 10000 + '</desc><rect width="5" height="5"/></svg>')
+
+
+def in_render_gzip_bomb(d, m):
+    """An .svgz that inflates past 32 MiB: refused while inflating."""
+    import gzip
+
+    body = _HEAD + '<rect width="5" height="5"/><!--' + " " * (40 * 2**20) + "--></svg>"
+    (d / "x.svg").write_bytes(gzip.compress(body.encode(), 9))
+    return ["render", str(d / "x.svg"), "-o", str(d / "out.png")], None
+
+
+def in_render_svgz(d, m):
+    import gzip
+
+    (d / "x.svg").write_bytes(gzip.compress((_HEAD + '<rect width="5" height="5"/></svg>').encode()))
+    return ["render", str(d / "x.svg"), "-o", str(d / "out.png")], None

@@ -322,3 +322,7 @@ def in_hard_edged_clip_art(d, m):
         draw.ellipse((x - r, y - r, x + r, y + r), fill=colors[i % 10])
     save(img, d / "x.png")
     return ["vectorize", str(d / "x.png"), "-o", str(d / "out.svg")], None
+
+
+def in_max_memory_not_finite(d, m):
+    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--max-memory", "1e400"], None
