@@ -5,7 +5,7 @@ PIP ?= .venv/bin/pip
 TORCH_PIN ?= torch==2.13.0
 TORCH_INDEX ?= https://download.pytorch.org/whl/cpu
 
-.PHONY: install test test-slow fuzz lint train-fonts train-mnist train-emoji train-icons bench bench-cli bench-safety bench-hardening bench-realworld bench-morphs bench-sets bench-vectorize bench-outlines bench-solves bench-folder results demo data-fonts data-mnist data-emoji data-icons clean
+.PHONY: install test test-slow fuzz lint bench-scale train-fonts train-mnist train-emoji train-icons bench bench-cli bench-safety bench-hardening bench-realworld bench-morphs bench-sets bench-vectorize bench-outlines bench-solves bench-folder results demo data-fonts data-mnist data-emoji data-icons clean
 
 install: .venv/.installed
 
@@ -21,6 +21,7 @@ test: install
 	$(PY) -m pytest -q
 
 test-slow: install
+	$(PIP) install -q -e '.[ray]'   # the Ray engine's tests run on a local cluster
 	$(PY) -m pytest -q -m slow
 
 fuzz: install
@@ -37,6 +38,11 @@ bench: install
 # One picture start to finish against `import torch`, quiet and with one core busy, beside the commit
 # CLI_BEFORE (checked out in bench/.before-cli): docs/bench-cli.md. About 10 minutes on 2 cores.
 CLI_BEFORE ?= 549518d
+# Local workers against `--engine ray` on a local cluster, same held-out glyphs, one run: docs/SCALE.md. About 4 minutes.
+bench-scale: bench-sets
+	$(PIP) install -q -e '.[ray]'
+	$(PY) bench/scale.py --markdown docs/SCALE.md
+
 bench-safety: install
 	$(PY) bench/safety.py --out docs/safety-run.md
 

@@ -21,7 +21,7 @@ from .batch import (
     run_batch,
 )
 from .options import BYTES, Finite, load_model, model_options, nonempty, parse_segments, set_threads_for
-from .streams import load_input_image, read_input, write_output
+from .streams import load_input_image, native_stderr_quiet, read_input, write_output
 
 VECTORIZE_CHUNK = 32  # images per batch (one forward pass, one refinement batch): bounded memory, written as done
 JOBS_MIN_IMAGES = 64  # --jobs auto: worker processes (their start-up, about 3 s each) pay from this many inputs
@@ -76,13 +76,19 @@ MAX_AUTO_JOBS = 8  # --jobs auto: at most this many (each holds the model and ab
 @click.option("--compile/--no-compile", "compile_", default=False, show_default=True,
               help="Refine through torch.compile'd kernels: about 20 s to compile per image size the first time on a "
                    "machine (cached after); on 2 CPU cores it did not pay on a folder of 1000 glyphs (bench/folder.py).")
+@click.option("--engine", type=click.Choice(["local", "ray"]), default="local", show_default=True,
+              help="ray: the pictures are read by Ray Data and vectorized by actors that each load the model once, on "
+                   "the cluster at --address or RAY_ADDRESS (else a local one on this host); -j sets the actors "
+                   "(default: the cluster's CPUs, or its GPUs). The SVGs are the local run's, under the same names. "
+                   "Needs pip install 'im2vec[ray]'.")
+@click.option("--address", default=None, help="With --engine ray: the Ray cluster's address (ray://host:10001, auto).")
 @click.option("--max-memory", type=BYTES, default=None, metavar="SIZE",
               help="Memory budget of the process (e.g. 1G, 800M): a picture too large to read within it is refused "
                    "before decoding, and a large one is vectorized at a smaller copy (at most 2048x2048). [2G]")
 @model_options
 @click.pass_context
 def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, tolerance, colors, refine, effort, preset,
-              speckle, verbose, simplify_px, jobs, compile_, max_memory, model_name, device, seed):
+              speckle, verbose, simplify_px, jobs, compile_, engine, address, max_memory, model_name, device, seed):
     """Vectorize images (PNG/JPG, any size) into SVGs of closed cubic paths.
 
     The SVG's viewBox is the input's pixel grid, so it overlays the input exactly.
@@ -97,6 +103,8 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, toleranc
     single = len(items) == 1 and items[0][1] is None  # one input given: -o may name its file
     if not single and output == "-":
         raise click.UsageError("several inputs need -o DIR")
+    if engine == "ray" and "-" in inputs:
+        raise click.UsageError("--engine ray reads files: give files or folders, not - (stdin)")
     items, notes = dedupe_inputs(items)
     dests, more = plan_outputs(items, output, ".svg", single)
     notes += more
@@ -112,25 +120,17 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, toleranc
     options = VectorizeOptions(refine=refine, effort=effort, segments=k, quality=quality, max_paths=max_paths,
                                simplify_px=simplify_px, parts=parts, tolerance=tolerance, colors=colors,
                                compile=compile_, max_memory=max_memory, preset=preset, speckle=speckle)
-    if jobs is None:
+    if jobs is None and engine == "local":
         on_cpu = next(model.parameters()).device.type == "cpu"
         jobs = min(free, MAX_AUTO_JOBS) if many and on_cpu and len(items) >= JOBS_MIN_IMAGES else 1
     api.check_segments(model, k)  # before any file is read
     for note in notes:
         warn(note)
-    where = dict(zip((item for item, _ in items), dests))
-
-    def write(item, vec):
-        if isinstance(vec, Exception):  # this picture's pipeline failed: the others go on
-            return item, Im2VecError(f"{item}: {vec}")
-        try:
-            write_output(where[item], vec.to_svg(), parents=not single)
-            if verbose:
-                click.echo(describe_result(item, vec), err=True)
-            return item, None
-        except Im2VecError as exc:
-            return item, exc
-
+    write = _writer(dict(zip((item for item, _ in items), dests)), single, verbose)
+    if engine == "ray":
+        with native_stderr_quiet():  # Ray's own processes' lines; ours still reach stderr
+            run_batch(ctx, items, _on_ray(model_name, jobs, address, device, seed, options, write), chunk=len(items))
+        return
     jobs = min(jobs, -(-len(items) // VECTORIZE_CHUNK))  # a worker per chunk at most: each loads the model
     if jobs > 1 and len(items) > 1:
         threads = runtime.intra_op_threads(len(items), jobs, free)
@@ -148,8 +148,47 @@ _APPLIES = {
     "speckle": (lambda p: p["refine"] and p["parts"] == "clean", "it shapes --parts clean with refinement"),
     "effort": (lambda p: p["refine"], "it sets how hard refinement works, and --no-refine skips it"),
     "compile_": (lambda p: p["refine"], "it compiles the refinement, and --no-refine skips it"),
+    "address": (lambda p: p["engine"] == "ray", "it is the Ray cluster of --engine ray"),
+    "verbose": (lambda p: p["engine"] == "local", "the Ray engine's actors describe no picture"),
     "quality": (lambda p: p["segments"] == "auto", "it sets --segments auto's choice"),
 }
+
+
+def _writer(where: dict, single: bool, verbose: bool):
+    """``write(item, result)`` -> ``(item, error or None)``: a picture's SVG (a vector image, or its
+    text from the Ray engine) written to its planned output, or its failure, named."""
+
+    def write(item, vec):
+        if isinstance(vec, Exception):  # this picture's pipeline failed: the others go on
+            return item, vec if str(vec).startswith(f"{item}: ") else Im2VecError(f"{item}: {vec}")
+        try:
+            write_output(where[item], vec if isinstance(vec, str) else vec.to_svg(), parents=not single)
+            if verbose and not isinstance(vec, str):
+                click.echo(describe_result(item, vec), err=True)
+            return item, None
+        except Im2VecError as exc:
+            return item, exc
+
+    return write
+
+
+def _on_ray(model_name, jobs, address, device, seed, options, write):
+    """``vectorize --engine ray``'s work: every input at once through ``rayengine.vectorize_on_ray``,
+    each SVG written here as it comes back (the local run's names, atomically)."""
+    import os
+
+    from .. import rayengine
+
+    model_ref = os.path.abspath(model_name) if os.path.isdir(model_name) else model_name  # actors' cwd differs
+
+    def work(group):
+        by_path = {os.path.abspath(item): item for item, _ in group}
+        for path, result in rayengine.vectorize_on_ray(list(by_path), model_ref, options, jobs=jobs, address=address,
+                                                       device=device, seed=seed):
+            item = by_path[path]
+            yield write(item, Im2VecError(str(result).replace(path, item)) if isinstance(result, Exception) else result)
+
+    return work
 
 
 def describe_result(item, vec) -> str:

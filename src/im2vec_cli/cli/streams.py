@@ -5,6 +5,7 @@ Every write to a file is atomic (``files.atomic_write``); every failure is one `
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 from pathlib import Path
@@ -84,3 +85,32 @@ def make_folder(path: str | os.PathLike) -> Path:
     except OSError as exc:
         raise Im2VecError(f"{out}: cannot create folder ({exc.strerror or exc})") from None
     return out
+
+
+@contextlib.contextmanager
+def native_stderr_quiet():
+    """Point file descriptor 2 at /dev/null while ``sys.stderr`` (our errors, warnings and
+    progress) keeps writing to where stderr went: lines that native code and child processes
+    write straight to the descriptor (Ray's core worker) stay off the terminal. A no-op where
+    ``sys.stderr`` is not descriptor 2 (in process, as under click's test runner)."""
+    try:
+        real = sys.stderr.fileno() == 2
+    except (AttributeError, OSError, ValueError):
+        real = False
+    if not real:
+        yield
+        return
+    sys.stderr.flush()
+    saved = os.dup(2)
+    ours, before = os.fdopen(saved, "w", buffering=1, encoding=sys.stderr.encoding, errors="backslashreplace"), sys.stderr
+    null = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(null, 2)
+    os.close(null)
+    sys.stderr = ours
+    try:
+        yield
+    finally:
+        ours.flush()
+        os.dup2(saved, 2)
+        sys.stderr = before
+        ours.close()

@@ -1,0 +1,124 @@
+"""Vectorize a corpus on Ray (``vectorize --engine ray``): the files are read by Ray Data with
+their paths, a callable class (``Vectorizer``) loads the model once per actor and vectorizes each
+batch through ``api.vectorize_each`` with the local run's options, and the SVG texts stream back
+to the caller, which writes them (the CLI: atomically, under the local run's names).
+
+The same class serves a Ray user's own pipeline::
+
+    ds = ray.data.read_binary_files("s3://bucket/icons/", include_paths=True)
+    ds = ds.map_batches(Vectorizer, fn_constructor_kwargs={"model": "icons"}, batch_size=32,
+                        compute=ray.data.ActorPoolStrategy(size=8), num_cpus=1)
+    ds.select_columns(["path", "svg", "error"]).write_parquet("s3://bucket/svgs/")
+
+Outputs do not depend on how pictures are batched or on the threads (checked byte for byte:
+tests/test_rayengine.py), so a cluster's SVGs are the local run's.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from collections.abc import Iterator
+
+from .errors import Im2VecError
+from .options import VectorizeOptions
+
+BATCH = 32  # pictures an actor vectorizes at once (the local run's chunk)
+INSTALL = "pip install 'im2vec[ray]'"
+
+
+class Vectorizer:
+    """A Ray Data callable class (``ds.map_batches(Vectorizer, ...)``): the model is loaded once
+    per actor. Each batch's rows hold ``path`` and ``bytes`` (``read_binary_files(...,
+    include_paths=True)``), or ``path`` alone (the file is read here, within the local run's
+    bounds); they come back as ``path``, ``svg`` (the SVG text, ``""`` when it failed) and
+    ``error`` (one line naming the picture, ``""`` when it was vectorized)."""
+
+    def __init__(self, model: str = "fonts", options: VectorizeOptions | None = None, device: str = "auto",
+                 seed: int = 0, threads: int = 1):
+        from .api import load_model
+        from .runtime import seed_everything, set_threads
+
+        set_threads(threads)
+        seed_everything(seed)
+        self.model, self.options = load_model(model, device), options or VectorizeOptions()
+
+    def __call__(self, batch: dict) -> dict:
+        from .api import vectorize_each
+        from .files import load_image
+
+        paths = [str(p) for p in batch["path"]]
+        data = batch.get("bytes")
+        errors, svgs, good = [""] * len(paths), [""] * len(paths), []
+        for i, path in enumerate(paths):
+            try:
+                raw = None if data is None else bytes(data[i])
+                good.append((i, load_image(path, raw, self.options.max_input_pixels())))
+            except Im2VecError as exc:
+                errors[i] = str(exc)
+        for (i, _), vec in zip(good, vectorize_each([p for _, p in good], self.model, self.options)):
+            if isinstance(vec, Exception):
+                errors[i] = f"{paths[i]}: {vec}"
+            else:
+                svgs[i] = vec.to_svg()
+        return {"path": paths, "svg": svgs, "error": errors}
+
+
+def vectorize_on_ray(paths: list[str], model: str = "fonts", options: VectorizeOptions | None = None, *,
+                     jobs: int | None = None, address: str | None = None, device: str = "auto",
+                     seed: int = 0) -> Iterator[tuple[str, str | Im2VecError]]:
+    """``(path, SVG text or the error of that picture)`` for each of ``paths`` (absolute, readable
+    where the actors run), as the actors finish them, in no set order.
+
+    ``address``: the cluster (``None``: ``RAY_ADDRESS``, else a local cluster on this host, ended
+    when the work ends). ``jobs``: the actors (default: the cluster's CPUs, or its GPUs when it has
+    them and ``device`` allows: one GPU an actor). A file over the local run's input bound is its
+    own error, never read. Raises ``Im2VecError`` (one line) without Ray installed."""
+    from .files import MAX_INPUT_BYTES
+
+    ray = _ray()
+    started = not ray.is_initialized()
+    if started:
+        ray.init(address=address, include_dashboard=False, log_to_driver=False, logging_level=logging.ERROR)
+    try:
+        readable = []
+        for p in paths:
+            size = os.stat(p).st_size if os.path.isfile(p) else -1
+            if 0 <= size <= MAX_INPUT_BYTES:
+                readable.append(p)
+            else:
+                yield p, Im2VecError(f"{p}: not a regular file of at most {MAX_INPUT_BYTES // 2**20} MiB")
+        if readable:
+            yield from _run(ray, readable, model, options or VectorizeOptions(), jobs, device, seed)
+    finally:
+        if started:
+            ray.shutdown()
+
+
+def _run(ray, paths: list[str], model: str, options: VectorizeOptions, jobs: int | None, device: str, seed: int):
+    resources = ray.cluster_resources()
+    gpus = int(resources.get("GPU", 0)) if device in ("auto", "cuda") or device.startswith("cuda:") else 0
+    size = jobs or (gpus or max(1, int(resources.get("CPU", 1))))
+    per_actor = {"num_gpus": 1} if gpus else {"num_cpus": 1}
+    ds = ray.data.read_binary_files(paths, include_paths=True, num_cpus=0)  # reading waits on disks, not CPUs
+    ds = ds.map_batches(Vectorizer, batch_size=BATCH, compute=ray.data.ActorPoolStrategy(size=min(size, len(paths))),
+                        fn_constructor_kwargs={"model": model, "options": options, "seed": seed,
+                                               "device": "cuda" if gpus else device}, **per_actor)
+    for row in ds.select_columns(["path", "svg", "error"]).iter_rows():
+        yield row["path"], Im2VecError(row["error"]) if row["error"] else row["svg"]
+
+
+def _ray():
+    """Ray and Ray Data, quiet (their progress bars and INFO lines off stderr), or one line saying
+    how to install them."""
+    try:
+        import ray
+        import ray.data
+    except ImportError:
+        raise Im2VecError(f"--engine ray needs Ray (Ray Data): {INSTALL}") from None
+    for name in ("ray", "ray.data"):
+        logging.getLogger(name).setLevel(logging.ERROR)
+    ctx = ray.data.DataContext.get_current()
+    ctx.enable_progress_bars = ctx.enable_operator_progress_bars = False
+    ctx.print_on_execution_start = False
+    return ray
