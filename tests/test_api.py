@@ -195,3 +195,18 @@ def test_bad_options_raise_the_documented_error(field, value):
     with pytest.raises(Im2VecError, match=field) as info:
         VectorizeOptions(**{field: value})
     assert isinstance(info.value, ConfigError) and isinstance(info.value, ValueError)  # still a ValueError too
+
+
+def test_no_refine_runs_eager_unless_compile_is_asked(monkeypatch, model):
+    """`vectorize --no-refine` ran the model's passes through torch.compile (8-18 s a process for
+    0.15 s of work once the model is loaded): like refinement, it compiles only with ``compile=True``."""
+    import im2vec_cli.infer as infer
+    from im2vec_cli.raster import compile_enabled
+
+    seen, real = [], infer.vectorize
+    monkeypatch.delenv("IM2VEC_COMPILE", raising=False)
+    monkeypatch.setattr(infer, "vectorize", lambda *a, **k: seen.append(compile_enabled()) or real(*a, **k))
+    img = torch.ones(3, 32, 32)
+    img[:, 8:24, 8:24] = 0
+    iv.vectorize(img, model[0], refine=False, parts="model")
+    assert seen == [False]

@@ -83,7 +83,8 @@ def vectorize(images, model=DEFAULT_MODEL, options: VectorizeOptions | None = No
         out = _refined(model, pictures, o, on_event)
     else:
         kw = {"segments": o.segments, "quality": o.quality, "max_paths": o.max_paths, "clean": o.parts == "clean"}
-        out = [simplify(v, o.simplify_px or 0.0) for v in infer.vectorize(model, pictures, **kw)]
+        with compiling(o.compile):  # compiling the passes cost 6-16 s a process for 0.15 s of work
+            out = [simplify(v, o.simplify_px or 0.0) for v in infer.vectorize(model, pictures, **kw)]
     return out[0] if one else out
 
 

@@ -50,9 +50,9 @@ MAX_AUTO_JOBS = 8  # --jobs auto: at most this many (each holds the model and ab
                    "[5e-4]; smaller is more exact, larger more compact.")
 @click.option("--refine/--no-refine", default=True,
               help="Fit the paths to each input by gradient descent through the renderer; several inputs are "
-                   "refined in batches. --no-refine: the model's guess alone (tens of milliseconds; with --parts model, "
-                   "milliseconds), for pictures like the model's training set: scans, logos and other "
-                   "sets' pictures need refinement. [on]")
+                   "refined in batches. --no-refine: the model's guess alone (about 0.3 s a 64 px glyph once the "
+                   "model is loaded, its passes included; with --parts model 0.15 s), for pictures like the model's "
+                   "training set: scans, logos and other sets' pictures need refinement. [on]")
 @click.option("--effort", type=click.Choice(EFFORTS), default="fast", show_default=True,
               help="With refinement: draft (clean outlines traced and fitted, not polished: the quickest), fast "
                    "(about 0.25 s for one 64 px glyph on 2 CPU cores, 40 ms each in a folder of them) or best "
