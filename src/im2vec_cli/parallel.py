@@ -79,7 +79,7 @@ def vectorize_chunks(chunks: Iterable[list], model_ref: str, *, jobs: int, threa
 
 def _next(pool: _Pool, spare: _Pool, pending: collections.deque, on_event) -> Iterator[list]:
     """The results of the oldest chunk in flight; after a worker's death, of every chunk that was."""
-    chunk, future = pending[0]
+    future = pending[0][1]
     try:
         out = future.result()
     except BrokenProcessPool:  # every chunk in flight is lost with the pool: each is run again alone
