@@ -242,3 +242,25 @@ def test_a_hard_edged_drawing_of_curves_is_no_pixel_art():
     colors = np.vstack([[1, 1, 1], rng.integers(0, 256, (5, 3)) / 255])
     assert read(colors[rng.integers(0, 6, (16, 16))]).kind == "pixel"
     assert read(colors[rng.integers(0, 6, (96, 96))]).kind == "pixel"
+
+
+def test_a_hard_edged_diagram_of_thin_lines_stays_exact():
+    """Boxes, a connector and a diagonal drawn 1 px wide without anti-aliasing (320 px, few colour
+    edges): drawn as curves, the diagonal vanished and the outlines thinned to hairlines, so a
+    picture with a colour in lines a pixel or two wide is traced along its pixels, exactly."""
+    from PIL import ImageDraw
+
+    from im2vec_cli.trace.outline import traced
+
+    img = Image.new("RGB", (320, 240), "white")
+    draw = ImageDraw.Draw(img)
+    draw.rectangle((20, 20, 140, 100), fill=(230, 230, 250), outline=(0, 0, 0))
+    draw.rectangle((180, 20, 300, 100), fill=(250, 230, 200), outline=(0, 0, 0))
+    draw.line((140, 60, 180, 60), fill=(0, 0, 0), width=1)
+    draw.ellipse((120, 140, 200, 220), outline=(200, 0, 0), width=2)
+    draw.line((20, 200, 100, 130), fill=(0, 0, 200), width=1)
+    pic = np.asarray(img, np.float64) / 255
+    r = read(pic)
+    assert r.kind == "pixel"
+    vec, _, exact = traced(r.picture, 0.5, None, None, r.kind, r.tone)
+    assert exact and np.abs(rasterize_svg(vec.to_svg(), 320, 240) - pic).max() < 2 / 255

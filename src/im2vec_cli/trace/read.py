@@ -46,6 +46,8 @@ PIXEL_EDGES = 0.08  # native pixel art (no upscaling found) has at least this sh
 # edge (its pixels are its features: 0.3-0.9 on sprites); a hard-edged drawing of large shapes, its curves
 # aliased, has far fewer (flat circles at 384-512 px: 0.02-0.05) and is traced with smooth curves as a logo
 PIXEL_SIDE = 64  # a hard-edged picture this small is pixel art whatever its edges
+THICK_SHARE = 0.5  # ...and one with a colour of which a 3x3 erosion keeps less than this share (1 px lines: 0-0.06;
+THIN_MIN = 4  # of at least this many pixels) too; flat circles keep 0.84-0.96 of every colour
 BLACK_INK = 0.35  # ink of a scan darker than this (mean channel, after flattening) and ...
 NEUTRAL_INK = 0.12  # ... less colourful than this (channel spread) is black ink
 
@@ -75,8 +77,9 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
     h, w, _ = picture.shape
     speck = max(2, 2 + max(h, w) // 256) if speckle is None else speckle
     block = pixel_block(picture) if preset in (None, "pixel") else 1
-    hard = preset is None and block == 1 and hard_palette(picture) is not None
-    if preset == "pixel" or (preset is None and block > 1) or (hard and _native_pixel_art(picture)):
+    palette = hard_palette(picture) if preset is None and block == 1 else None
+    hard = palette is not None
+    if preset == "pixel" or (preset is None and block > 1) or (hard and _native_pixel_art(picture, palette[1])):
         small = picture[::block, ::block] if block > 1 else picture
         return Reading("pixel", small, polish=False, figures={"block": block})
     if hard:  # a large hard-edged drawing: its exact colours, outlined with curves (``regions.trace``)
@@ -112,11 +115,23 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
     return Reading("logo", smoothed(picture, noise) if noise > NOISE else picture, figures=figures)
 
 
-def _native_pixel_art(picture: np.ndarray) -> bool:
-    """Whether a hard-edged picture (``hard_palette``) without upscaled blocks is pixel art: small,
-    or made of pixel-sized features (``PIXEL_EDGES``). A large hard-edged drawing of curves is
-    not: traced along its pixel edges it is a staircase of thousands of segments."""
-    return max(picture.shape[:2]) <= PIXEL_SIDE or edge_share(picture) >= PIXEL_EDGES
+def _native_pixel_art(picture: np.ndarray, labels: np.ndarray) -> bool:
+    """Whether a hard-edged picture (``hard_palette``: its colours ``labels (H, W)``) without
+    upscaled blocks is pixel art: small, made of pixel-sized features (``PIXEL_EDGES``), or with
+    a colour drawn in lines a pixel or two wide (a diagram's outlines, a UI's strokes: drawn as
+    curves they would thin to hairlines or vanish), all of which its pixel edges trace exactly.
+    A large hard-edged drawing of thick shapes is not: traced along its pixel edges it is a
+    staircase of thousands of segments."""
+    if max(picture.shape[:2]) <= PIXEL_SIDE or edge_share(picture) >= PIXEL_EDGES:
+        return True
+    from scipy.ndimage import binary_erosion
+
+    for k in range(int(labels.max()) + 1):
+        mask = labels == k
+        n = int(mask.sum())
+        if n >= THIN_MIN and binary_erosion(mask).sum() < THICK_SHARE * n:
+            return True  # most of this colour is within a pixel of another: lines, not shapes
+    return False
 
 
 def edge_share(picture: np.ndarray) -> float:
