@@ -46,8 +46,8 @@ PIXEL_EDGES = 0.08  # native pixel art (no upscaling found) has at least this sh
 # edge (its pixels are its features: 0.3-0.9 on sprites); a hard-edged drawing of large shapes, its curves
 # aliased, has far fewer (flat circles at 384-512 px: 0.02-0.05) and is traced with smooth curves as a logo
 PIXEL_SIDE = 64  # a hard-edged picture this small is pixel art whatever its edges
-THICK_SHARE = 0.5  # ...and one with a colour of which a 3x3 erosion keeps less than this share (1 px lines: 0-0.06;
-THIN_MIN = 4  # of at least this many pixels) too; flat circles keep 0.84-0.96 of every colour
+THICK_SHARE = 0.8  # ...and so is one with a colour (of THIN_MIN pixels or more) that a 3x3 erosion keeps less of:
+THIN_MIN = 4  # 1 px lines keep 0-0.06, the Shepp-Logan phantom's 2-4 px ring 0.74, flat circles 0.84-0.96
 BLACK_INK = 0.35  # ink of a scan darker than this (mean channel, after flattening) and ...
 NEUTRAL_INK = 0.12  # ... less colourful than this (channel spread) is black ink
 
