@@ -104,8 +104,29 @@ def _run(ray, paths: list[str], model: str, options: VectorizeOptions, jobs: int
     ds = ds.map_batches(Vectorizer, batch_size=BATCH, compute=ray.data.ActorPoolStrategy(size=min(size, len(paths))),
                         fn_constructor_kwargs={"model": model, "options": options, "seed": seed,
                                                "device": "cuda" if gpus else device}, **per_actor)
-    for row in ds.select_columns(["path", "svg", "error"]).iter_rows():
-        yield row["path"], Im2VecError(row["error"]) if row["error"] else row["svg"]
+    rows = iter(ds.select_columns(["path", "svg", "error"]).iter_rows())  # a generator: close() ends the execution
+    try:
+        for row in rows:
+            yield row["path"], Im2VecError(row["error"]) if row["error"] else row["svg"]
+    finally:  # an interrupt: Ray Data's threads stopped before Ray is (else Ray ends the process, exit 1)
+        rows.close()
+        _join_data_threads()
+
+
+DATA_THREADS = ("iter_threaded", "Prefetcher", "StreamingExecutor")  # Ray Data's own threads (names' starts)
+
+
+def _join_data_threads(timeout: float = 30.0) -> None:
+    """Wait (at most ``timeout`` s in all) for Ray Data's iteration threads to end once their
+    iterator is closed: one still asking for a block when Ray shuts down makes Ray end the whole
+    process with exit 1 (an interrupted run exited 1 instead of 130, one run in two)."""
+    import threading
+    import time
+
+    deadline = time.monotonic() + timeout
+    for thread in threading.enumerate():
+        if thread is not threading.current_thread() and thread.name.startswith(DATA_THREADS):
+            thread.join(max(0.0, deadline - time.monotonic()))
 
 
 def _ray():
