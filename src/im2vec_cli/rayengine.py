@@ -71,8 +71,8 @@ def vectorize_on_ray(paths: list[str], model: str = "fonts", options: VectorizeO
     where the actors run), as the actors finish them, in no set order.
 
     ``address``: the cluster (``None``: ``RAY_ADDRESS``, else a local cluster on this host, ended
-    when the work ends). ``jobs``: the actors (default: the cluster's CPUs, or its GPUs when it has
-    them and ``device`` allows: one GPU an actor). A file over the local run's input bound is its
+    when the work ends). ``jobs``: the actors (default and most: the cluster's CPUs, or its GPUs when
+    it has them and ``device`` allows: one GPU an actor). A file over the local run's input bound is its
     own error, never read. Raises ``Im2VecError`` (one line) without Ray installed."""
     from .files import MAX_INPUT_BYTES
 
@@ -98,7 +98,8 @@ def vectorize_on_ray(paths: list[str], model: str = "fonts", options: VectorizeO
 def _run(ray, paths: list[str], model: str, options: VectorizeOptions, jobs: int | None, device: str, seed: int):
     resources = ray.cluster_resources()
     gpus = int(resources.get("GPU", 0)) if device in ("auto", "cuda") or device.startswith("cuda:") else 0
-    size = jobs or (gpus or max(1, int(resources.get("CPU", 1))))
+    most = gpus or max(1, int(resources.get("CPU", 1)))  # more actors than the cluster holds would wait forever
+    size = min(jobs or most, most)
     per_actor = {"num_gpus": 1} if gpus else {"num_cpus": 1}
     ds = ray.data.read_binary_files(paths, include_paths=True, num_cpus=0)  # reading waits on disks, not CPUs
     ds = ds.map_batches(Vectorizer, batch_size=BATCH, compute=ray.data.ActorPoolStrategy(size=min(size, len(paths))),
