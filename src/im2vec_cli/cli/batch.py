@@ -72,8 +72,6 @@ def expand_inputs(inputs: Iterable[str]) -> list[Item]:
 def dedupe_inputs(items: list[Item]) -> tuple[list[Item], list[str]]:
     """The inputs with every file given more than once (by path, through a link, or inside a
     folder also given) kept once, at its first place, and a note for each repeat."""
-    import os
-
     seen: dict[object, str] = {}
     kept, notes = [], []
     for item, root in items:
@@ -95,8 +93,6 @@ def names_folder(output: str) -> bool:
     """Whether ``-o`` names a folder: an existing one, or any path that ends with a slash. A
     slash after the name of something that is not a folder is refused (``Im2VecError``): the
     user meant a folder, and the file there is not to be replaced."""
-    import os
-
     if output == "-":
         return False
     slash = output.endswith(os.sep) or bool(os.altsep and output.endswith(os.altsep))

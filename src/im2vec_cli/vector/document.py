@@ -6,6 +6,7 @@ render), and what we cannot draw as SVG draws it refused by name or left out
 
 from __future__ import annotations
 
+import locale
 import math
 import re
 from xml.etree import ElementTree
@@ -60,8 +61,8 @@ def check_document(data: bytes) -> bytes:
     svgelements (pure Python, lenient) sees it. Returns the document svgelements is to read:
     ``data``, or, where some of it is never drawn (``_undrawn``), the document without it."""
     root = check_bounds(data)
-    if root.tag.rsplit("}", 1)[-1] != "svg":
-        raise InputError(f"the root element is <{root.tag.rsplit('}', 1)[-1]}>, not <svg>")
+    if _name(root) != "svg":
+        raise InputError(f"the root element is <{_name(root)}>, not <svg>")
     vb = root.get("viewBox")
     if vb is not None:
         try:
@@ -91,18 +92,15 @@ def _name(el) -> str:
     return el.tag.rsplit("}", 1)[-1] if isinstance(el.tag, str) else ""
 
 
-def _passes(el) -> bool:
+def _passes(el, here: str) -> bool:
     """SVG's conditional processing, as cairosvg does it: no ``requiredExtensions``, features
-    among ``FEATURES`` and a ``systemLanguage`` (if any) that the user's locale starts with."""
-    import locale
-
+    among ``FEATURES`` and a ``systemLanguage`` (if any) that the user's locale ``here`` starts with."""
     if el.get("requiredExtensions") is not None:
         return False
     features = el.get("requiredFeatures")
     if features is not None and not set(features.split()) <= FEATURES:
         return False
     languages = el.get("systemLanguage")
-    here = locale.getlocale()[0] or ""
     return languages is None or any(lang.strip() and here.startswith(lang.strip()) for lang in languages.split(","))
 
 
@@ -113,6 +111,7 @@ def _undrawn(root) -> bool:
     (``InputError``): a nested ``<svg>`` viewport, a ``<use>`` of a ``<symbol>`` or an ``<svg>``
     (their viewports clip and scale), a ``<use>`` of something inside a never-drawn element.
     Returns whether anything was removed."""
+    here = locale.getlocale()[0] or ""
     ids = {el.get("id"): el for el in root.iter() if el.get("id")}
     hidden: set[int] = set()
     for el in root.iter():
@@ -132,7 +131,7 @@ def _undrawn(root) -> bool:
     for parent in list(root.iter()):
         kept_one = False
         for child in list(parent):
-            drop = _name(child) in NEVER_DRAWN or not _passes(child) or (_name(parent) == "switch" and kept_one)
+            drop = _name(child) in NEVER_DRAWN or not _passes(child, here) or (_name(parent) == "switch" and kept_one)
             if drop:
                 parent.remove(child)
                 removed = True
@@ -150,7 +149,7 @@ def _refuse_effects(root) -> None:
     does not hold: refused by name (an attribute, a ``style`` or a ``<style>`` sheet), never
     drawn wrong. ``none`` is no effect."""
     for el in root.iter():
-        tag = el.tag.rsplit("}", 1)[-1] if isinstance(el.tag, str) else ""
+        tag = _name(el)
         found = [(k, el.get(k)) for k in EFFECTS if el.get(k) is not None]
         found += _EFFECT_CSS.findall(el.get("style", "") + (el.text or "" if tag == "style" else ""))
         for name, value in found:
@@ -173,7 +172,7 @@ def _expanded_size(root) -> int:
         visiting.add(id(el))
         n = 1 + sum(size(child) for child in el)
         ref = el.get("href") or el.get(_XLINK_HREF) or ""
-        if el.tag.rsplit("}", 1)[-1] == "use" and ref.startswith("#") and ref[1:] in ids:
+        if _name(el) == "use" and ref.startswith("#") and ref[1:] in ids:
             n += size(ids[ref[1:]])
         visiting.discard(id(el))
         if n > MAX_ELEMENTS:
