@@ -5,7 +5,7 @@ PIP ?= .venv/bin/pip
 TORCH_PIN ?= torch==2.13.0
 TORCH_INDEX ?= https://download.pytorch.org/whl/cpu
 
-.PHONY: install test test-slow fuzz lint bench-scale train-fonts train-mnist train-emoji train-icons bench bench-cli bench-safety bench-hardening bench-realworld bench-morphs bench-sets bench-vectorize bench-outlines bench-solves bench-folder results demo data-fonts data-mnist data-emoji data-icons clean
+.PHONY: install test test-slow fuzz lint bench-scale train-fonts train-mnist train-emoji train-icons bench bench-cli bench-safety bench-hardening bench-realworld bench-morphs bench-sets bench-vectorize bench-outlines bench-solves bench-folder bench-speed results demo data-fonts data-mnist data-emoji data-icons clean
 
 install: .venv/.installed
 
@@ -98,6 +98,16 @@ bench-outlines: bench-sets
 # the variants side by side in one run (docs/BENCHMARKS.md). About 3 minutes on one thread.
 bench-solves: bench-sets
 	$(PY) bench/solves.py
+
+# As fast as vtracer (issue 70): one call with its process start, and folders of made and real pictures (Adwaita
+# icons from Debian's adwaita-icon-theme, scikit-image's sample pictures), im2vec and vtracer side by side in one
+# run, each folder's SVGs compared byte for byte with SPEED_BEFORE's: the speed section of docs/BENCHMARKS.md.
+# About 4 minutes on 2 cores.
+SPEED_BEFORE ?= e32e16a
+bench-speed: bench-sets
+	test -d /usr/share/icons/Adwaita/512x512 || (apt-get update -q && apt-get install -y -q adwaita-icon-theme)
+	test -d bench/.before-speed || git worktree add --detach bench/.before-speed $(SPEED_BEFORE)
+	$(PY) bench/speed.py --rounds 2 --before bench/.before-speed --markdown docs/BENCHMARKS.md
 
 # Folders at full quality (issue "batched refinement"): 1000 held-out glyphs (GNU FreeFont, Lato) in one
 # command, batched and in worker processes, against one image at a time (this code, and the commit before

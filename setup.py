@@ -1,5 +1,5 @@
 """The wheel carries the shipped models inside the package (``im2vec_cli/models/NAME``, where
-``model/pretrained.PACKAGE_MODELS`` looks), so that ``pip install .`` (not editable) works from
+``config.PACKAGE_MODELS`` looks), so that ``pip install .`` (not editable) works from
 any folder with the default model. Everything else is in pyproject.toml."""
 
 import shutil

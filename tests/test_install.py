@@ -54,7 +54,7 @@ def test_the_wheel_carries_the_models_and_works_from_any_folder(tmp_path):
 
 def test_an_install_without_models_says_what_to_do(tmp_path, monkeypatch):
     """No models found anywhere: the error names the ways to give one (it said "shipped models: none")."""
-    import im2vec_cli.model.pretrained as pretrained
+    import im2vec_cli.config as pretrained
     from im2vec_cli.errors import ModelError
 
     monkeypatch.setattr(pretrained, "REPO_MODELS", tmp_path / "none")

@@ -20,12 +20,13 @@ PKG = "im2vec_cli"
 
 LAYERS = {  # first component under im2vec_cli -> layer; higher may import lower or equal
     "errors": 0, "config": 0, "files": 0, "runtime": 0, "frame": 0, "optim": 0, "checkpoint": 0, "options": 0, "events": 0,
+    "lazy": 0,
     "raster": 1,
     "vector": 2,
     "trace": 3,
     "model": 4, "data": 4,
     "infer": 5, "project": 5, "refine": 5, "train": 5, "train_eval": 5, "distill": 5, "outline_aux": 5, "train_aux": 5, "train_features": 5, "evaluate": 5,
-    "api": 6, "extras": 6, "parallel": 6, "rayengine": 6,
+    "api": 6, "extras": 6, "parallel": 6, "rayengine": 6, "vectorizing": 6,
     "cli": 7, "__main__": 7,
 }
 SIBLINGS_APART = {("model", "data"), ("data", "model")}

@@ -18,134 +18,45 @@ gives the SVG text, in the input's pixel frame). Nothing here prints or exits: e
     (6, 'VectorImage')
 
 (run by ``tests/test_api.py::test_the_module_example_runs``, from the repository root.)
+
+torch and the model load at their first use: ``vectorize`` of pictures that are traced and not
+polished (larger than the polish's size, pixel art, photos, ``effort="draft"``) imports neither.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-import torch
 
-from . import infer
-from . import project as projection
-from . import refine as refinement
-from .errors import ModelError, VectorizeError, describe
-from .events import Event, FeatureData, FeatureTest, Skipped
-from .extras import fit_neighbours, fit_prior, train_aux
+from .config import DEFAULT_MODEL
+from .events import FeatureData, FeatureTest, Skipped
 from .files import as_image
-from .model.pretrained import DEFAULT_MODEL, from_pretrained
 from .options import PARTS, VectorizeOptions
-from .raster import compiling
-from .runtime import resolve_device
-from .trace import simplify
 from .vector import VectorImage
+from .vectorizing import ModelRef, check_segments, load_model, vectorize, vectorize_each
+from .vectorizing import model_of as _model
 
-__all__ = ["VectorizeOptions", "decode", "encode", "export", "fit_neighbours", "fit_prior", "interpolate",
-           "load_feature_net", "load_model", "prior_latents", "project", "sample", "train", "train_aux", "train_features",
-           "vectorize", "vectorize_each"]
-
-
-def load_model(name_or_dir: str = DEFAULT_MODEL, device: str | torch.device = "auto"):
-    """A shipped model by name (``fonts``, ``mnist``, ``emoji``, ``icons``) or a model folder written by
-    ``im2vec train`` / ``export``, on ``device`` (``auto``: CUDA, then MPS, then CPU)."""
-    dev = device if isinstance(device, torch.device) else resolve_device(device)
-    return from_pretrained(name_or_dir, dev)
+_EXTRAS = ("fit_neighbours", "fit_prior", "train_aux")  # extras.py's, which need torch: loaded at first use
+__all__ = ["ModelRef", "VectorizeOptions", "check_segments", "decode", "encode", "export", "interpolate", "load_feature_net", "load_model",
+           "prior_latents", "project", "sample", "train", "train_features", "vectorize", "vectorize_each", *_EXTRAS]
 
 
-def _model(model):
-    return load_model(model) if isinstance(model, str) else model
+def __getattr__(name: str):
+    if name in _EXTRAS:
+        from . import extras
 
-
-def vectorize(images, model=DEFAULT_MODEL, options: VectorizeOptions | None = None, *,
-              on_event: Callable[[Event], None] | None = None, **fields) -> VectorImage | list[VectorImage]:
-    """Vectorize one picture (or a list of them) into closed cubic paths.
-
-    Args:
-        images: a picture, or a list of pictures (any size each).
-        model: a model from ``load_model``, or its name.
-        options: a ``VectorizeOptions`` (default: its defaults; its docstring describes each
-            field); ``fields`` override any of them by name (``vectorize(img, m, parts="model")``).
-        on_event: hears the progress of refinement: ``events.Stage`` (read, traced, polished,
-            finished) and ``events.RefineStep``.
-
-    Returns:
-        One ``VectorImage`` per picture (a list for a list), in each picture's pixel frame.
-    """
-    o = dataclasses.replace(options or VectorizeOptions(), **fields)  # validated here, once
-    model = _model(model)
-    one = not isinstance(images, (list, tuple))
-    pictures = [as_image(x) for x in ([images] if one else images)]
-    check_segments(model, o.segments)
-    if o.refine:
-        out = _refined(model, pictures, o, on_event)
-    else:
-        kw = {"segments": o.segments, "quality": o.quality, "max_paths": o.max_paths, "clean": o.parts == "clean"}
-        with compiling(o.compile):  # compiling the passes cost 6-16 s a process for 0.15 s of work
-            out = [simplify(v, o.simplify_px or 0.0) for v in infer.vectorize(model, pictures, **kw)]
-    return out[0] if one else out
-
-
-def _refined(model, pictures: list[torch.Tensor], o: VectorizeOptions, on_event=None) -> list[VectorImage]:
-    """``vectorize`` with refinement: each result with its ``notes`` (``_notes``)."""
-    settings = refinement.EFFORTS[o.effort]
-    if o.simplify_px is not None:
-        settings = dataclasses.replace(settings, simplify_tol=o.simplify_px)
-    if o.tolerance is not None:
-        settings = dataclasses.replace(settings, tolerance=float(o.tolerance))
-    with compiling(o.compile):  # off by default: each new image size would compile afresh
-        got = refinement.refine_batch(model, pictures, settings=settings, parts=o.parts, colors=o.colors,
-                                      segments=o.segments, quality=o.quality, max_paths=o.max_paths,
-                                      max_work_pixels=o.work_pixels(), speckle=o.speckle, on_step=on_event,
-                                      preset=None if o.preset == "auto" else o.preset)
-    return [dataclasses.replace(v, notes=_notes(info)) for v, info in got]
-
-
-def _notes(info: dict) -> dict:
-    """What a result tells beside its paths: the kind of picture it was read as, and how."""
-    return {k: info[k] for k in ("kind", "reading", "start", "loss_end") if k in info}
-
-
-def vectorize_each(images: list, model=DEFAULT_MODEL, options: VectorizeOptions | None = None, *,
-                   on_event: Callable[[Event], None] | None = None, **fields) -> list[VectorImage | VectorizeError]:
-    """``vectorize`` of a list of pictures in which one picture's failure is its own: each entry
-    is the picture's ``VectorImage``, or a ``VectorizeError`` (one line) where its pipeline
-    raised anything (a dependency's error, memory running out). The pictures are vectorized
-    together; when that fails, each is vectorized alone, to find which. Options and the model
-    are checked first: a bad option raises, as in ``vectorize``; ``on_event`` as there."""
-    o = dataclasses.replace(options or VectorizeOptions(), **fields)
-    model = _model(model)
-    check_segments(model, o.segments)
-    try:
-        return vectorize(list(images), model, o, on_event=on_event)
-    except Exception as exc:  # noqa: BLE001 - any failure is one picture's; KeyboardInterrupt is not caught
-        if len(images) == 1:
-            return [_failed(exc)]
-    out: list = []
-    for img in images:
-        try:
-            out.append(vectorize([img], model, o)[0])
-        except Exception as exc:  # noqa: BLE001
-            out.append(_failed(exc))
-    return out
-
-
-def _failed(exc: Exception) -> VectorizeError:
-    return exc if isinstance(exc, VectorizeError) else VectorizeError(f"could not vectorize: {describe(exc)}")
-
-
-def check_segments(model, segments: int | str | None) -> None:
-    """``ModelError`` when ``segments="auto"`` is asked of a model without a segment predictor."""
-    if segments == "auto" and model.segment_predictor is None:
-        raise ModelError(f"model {getattr(model, 'name', '?')!r} has no segment predictor for segments='auto' "
-                         "(add one with `im2vec train-aux`)")
+        return getattr(extras, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def project(images, model=DEFAULT_MODEL, *, fit: bool = True, segments: int | None = None):
     """A picture or a list as the model draws them (``project.Projection``: latents and paths),
     fitted to each (``project.project``) or the encoder's guess (``fit=False``)."""
+    from . import project as projection
+    from .raster import compiling
+
     with compiling(False):  # a compile costs tens of seconds, a fit about one
         return projection.project(_model(model), _pictures(images), _fitting(fit), segments)
 
@@ -153,21 +64,28 @@ def project(images, model=DEFAULT_MODEL, *, fit: bool = True, segments: int | No
 def encode(images, model=DEFAULT_MODEL, *, fit: bool = True) -> np.ndarray:
     """Latents ``(N, D)`` float32 of a picture or a list, in one batch: fitted to each through
     the renderer (``project.LATENT``) or the encoder's posterior means (``fit=False``)."""
+    from . import project as projection
+    from .raster import compiling
+
     with compiling(False):
         setting = projection.LATENT if fit else projection.GUESS
         return projection.project(_model(model), _pictures(images), setting).z.float().cpu().numpy()
 
 
 def _fitting(fit: bool):
+    from . import project as projection
+
     return projection.ProjectSettings() if fit else projection.GUESS
 
 
-def _pictures(images) -> list[torch.Tensor]:
+def _pictures(images) -> list:
     return [as_image(x) for x in (images if isinstance(images, (list, tuple)) else [images])]
 
 
-def _latents(z, model) -> torch.Tensor:
-    """Latents ``(N, D)`` or ``(D,)`` (array-like) -> float32 ``(N, D)``, checked."""
+def _latents(z, model):
+    """Latents ``(N, D)`` or ``(D,)`` (array-like) -> float32 tensor ``(N, D)``, checked."""
+    import torch
+
     t = torch.as_tensor(np.asarray(z, dtype=np.float32))
     t = t.view(1, -1) if t.dim() == 1 else t
     if t.dim() != 2 or t.shape[1] != model.config.latent:
@@ -191,6 +109,8 @@ def decode(z, model=DEFAULT_MODEL, *, segments: int | None = None, keep_all: boo
     holes; ``"model"`` keeps the model's overlapping paths (under even-odd for the fonts and
     MNIST models). ``keep_all`` keeps unused paths too, so that every image has the same paths
     (morphs; it implies ``"model"``)."""
+    from . import infer
+
     model = _model(model)
     return infer.decode(model, _latents(z, model), segments=segments, keep_all=keep_all,
                         clean=_parts(parts, keep_all))
@@ -203,6 +123,8 @@ def prior_latents(n: int, model=DEFAULT_MODEL, *, seed: int = 0, temperature: fl
     ``prior``: ``"fitted"`` draws from the density fitted to the training set's latents that
     the model folder stores (``model.prior``), ``"normal"`` from N(0, I), ``"auto"`` the first when the
     model has one. ``temperature`` scales the std (``None``: the fitted prior's stored one, 1 for N(0, I))."""
+    from . import infer
+
     return infer.prior_latents(_model(model), n, seed=seed, temperature=temperature, prior=prior).numpy()
 
 
@@ -222,6 +144,9 @@ def interpolate(a, b, model=DEFAULT_MODEL, *, steps: int = 4, segments: int | No
     (decoded) or a projection of one (``project(...).take(i)``). The frames interpolate the
     two ends' paths (``Projection.between``), and are drawn as ``decode`` says (``keep_all``:
     the model's own paths, every frame with the same ones)."""
+    from . import project as projection
+    from .raster import compiling
+
     model = _model(model)
     with compiling(False):
         pa, pb = (projection.endpoint(model, x, _fitting(fit), segments) for x in (a, b))
@@ -231,7 +156,7 @@ def interpolate(a, b, model=DEFAULT_MODEL, *, steps: int = 4, segments: int | No
 # --- models from images: training, fine-tuning, the latent prior and the auxiliary networks ---
 
 def train(data_dir, run_dir="runs/latest", model_config=None, train_config=None, *, init=None,
-          device: str | torch.device = "auto", val_dir=None, resume: bool = False, overwrite: bool = False,
+          device="auto", val_dir=None, resume: bool = False, overwrite: bool = False,
           epochs: float | None = None, minutes: float | None = None, on_event=None) -> Path:
     """Train a model on a folder of images (``train.train``); returns the exported model folder.
 
@@ -245,6 +170,7 @@ def train(data_dir, run_dir="runs/latest", model_config=None, train_config=None,
     from .config import ModelConfig, TrainConfig
     from .model.pretrained import grow_state
     from .options import GROWABLE
+    from .runtime import resolve_device
     from .train import train as run_train
 
     given = model_config.to_dict() if isinstance(model_config, ModelConfig) else dict(model_config or {})
@@ -262,7 +188,7 @@ def train(data_dir, run_dir="runs/latest", model_config=None, train_config=None,
             raise ValueError(f"init takes the model's config (but {', '.join(GROWABLE)}); drop {', '.join(fixed)}")
         mcfg = ModelConfig.from_dict({**start.config.to_dict(), **given})
         init_state = grow_state(start.state_dict(), start.config, mcfg, tcfg.seed)
-    dev = device if isinstance(device, torch.device) else resolve_device(device)
+    dev = resolve_device(device) if isinstance(device, str) else device
     return run_train(data_dir, run_dir, mcfg, tcfg, device=dev, val_dir=val_dir, resume=resume,
                      overwrite=overwrite, on_event=on_event, epochs=epochs, init_state=init_state, minutes=minutes)
 
@@ -280,6 +206,8 @@ def train_features(data_dir, output, *, size: int = 64, fit: str = "resize", ste
     it to ``output``: a classifier when the folder layout names classes (with one more class
     for junk images, outlier exposure), else an autoencoder; its test accuracy (or MSE) on
     ``DATA/test`` is stored in its config. Returns the ``FeatureNet``."""
+    import torch
+
     from .data.folder import folder_labels, load_folder, split_dir
     from .errors import Im2VecError
     from .model.features import FeatureConfig

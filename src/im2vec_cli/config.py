@@ -8,11 +8,12 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, get_type_hints
 
-from .errors import ConfigError, Im2VecError
+from .errors import ConfigError, Im2VecError, ModelError
 from .options import ARCHS, FITS, GROUPINGS, parse_augment
 
 FORMAT_VERSION = 1
@@ -252,3 +253,74 @@ class TrainConfig(JsonConfig):
                               "loss traced")
         if self.train_only not in TRAIN_ONLY:
             raise ConfigError(f"TrainConfig.train_only must be one of {TRAIN_ONLY}, got {self.train_only!r}")
+
+
+# --- model folders: where a model named on the command line is found ---
+
+REPO_MODELS = Path(__file__).resolve().parents[2] / "models"
+PACKAGE_MODELS = Path(__file__).resolve().parents[0] / "models"
+DEFAULT_MODEL = "fonts"
+
+
+def resolve_model(name_or_dir: str | os.PathLike) -> Path:
+    """A model folder, looked up in this order:
+
+    1. a path (it names a folder: ``runs/x/model``, ``./fonts``, ``/abs``): that folder;
+    2. a bare name (``fonts``): a folder of that name here only when it holds ``config.json``,
+       then ``$IM2VEC_MODELS/NAME``, the repository's ``models/NAME``, the package's
+       bundled ``models/NAME``; so a folder here that is not a model never hides a shipped one.
+    """
+    p = Path(name_or_dir)
+    name = str(name_or_dir)
+    bare = os.sep not in name and (os.altsep or os.sep) not in name and name not in (".", "..")
+    if p.is_dir() and (not bare or (p / "config.json").is_file()):
+        return p
+    candidates = []
+    if os.environ.get("IM2VEC_MODELS"):
+        env = Path(os.environ["IM2VEC_MODELS"])
+        if not env.is_dir():  # a typo here would silently fall back to the shipped models
+            raise ModelError(f"IM2VEC_MODELS={env} is not a folder")
+        candidates.append(env / name)
+    candidates += [REPO_MODELS / name, PACKAGE_MODELS / name]
+    for c in candidates:
+        if (c / "config.json").is_file():
+            return c
+    if p.is_dir():
+        return p  # not a model: its missing config.json is the error to show
+    known = sorted({d.name for base in (REPO_MODELS, PACKAGE_MODELS) if base.is_dir() for d in base.iterdir()
+                    if (d / "config.json").is_file()})
+    if not known:  # an install without its models (a wheel built without them, a copied package)
+        raise ModelError(f"unknown model {name!r}: no models are installed; give --model a model folder, or set "
+                         "IM2VEC_MODELS to a folder of them (a checkout's models/)")
+    raise ModelError(f"unknown model {name!r} (not a directory; shipped models: {', '.join(known)})")
+
+
+SAFETENSORS_FLOATS = {"F32", "F16", "BF16"}  # how a weight may be stored (pretrained.STORED_FLOATS); integers: I64
+
+
+def check_model_folder(folder: Path) -> ModelConfig:
+    """What can be told of a model folder without torch, before it is needed: its config (every
+    bound), and its weights file present, whole (every tensor's bytes inside the file) and of
+    stored types the loader takes. The values (NaN, shapes against the config) are checked when
+    it loads (``pretrained.from_pretrained``). Returns the config."""
+    cfg = ModelConfig.load(folder / "config.json")
+    weights = folder / "model.safetensors"
+    if not weights.is_file():
+        raise ModelError(f"{folder}: model.safetensors is missing")
+    size = weights.stat().st_size
+    try:
+        with open(weights, "rb") as f:
+            n = int.from_bytes(f.read(8), "little")
+            if size < 8 or n > min(size - 8, MAX_CONFIG_BYTES * 16):
+                raise ValueError("its header runs past the file")
+            header = json.loads(f.read(n))
+        ends = [int(v["data_offsets"][1]) for k, v in header.items() if k != "__metadata__"]
+        kinds = {k: v["dtype"] for k, v in header.items() if k != "__metadata__"}
+    except (OSError, ValueError, KeyError, TypeError, IndexError, AttributeError) as exc:
+        raise ModelError(f"{weights}: unreadable weights ({exc})") from None
+    if max(ends, default=0) > size - 8 - n:
+        raise ModelError(f"{weights}: unreadable weights (truncated: its tensors end past the file)")
+    odd = sorted(k for k, t in kinds.items() if t not in SAFETENSORS_FLOATS | {"I64"})
+    if odd:
+        raise ModelError(f"{weights}: {odd[0]} is stored as {kinds[odd[0]]}, not as floats")
+    return cfg

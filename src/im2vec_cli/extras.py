@@ -38,7 +38,7 @@ def output_is_source(output, overwrite: bool, source) -> bool:
 
 def model_folder(model):
     """The folder a model was loaded from (``None`` for a model built in memory)."""
-    from .model.pretrained import resolve_model
+    from .config import resolve_model
 
     return resolve_model(model) if isinstance(model, str) else getattr(model, "folder", None)
 

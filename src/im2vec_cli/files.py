@@ -1,7 +1,9 @@
 """File input and output shared by the CLI and the library: atomic writes, image loading,
 PNG encoding.
 
-Images are returned as ``(3, H, W)`` float tensors in [0, 1] on a white background.
+Pictures are ``(H, W, 3)`` float32 arrays in [0, 1] on a white background (``load_picture``,
+``as_picture``: NumPy only, so that a picture traced and not polished never imports torch), or
+the same as ``(3, H, W)`` tensors (``load_image``, ``as_image``).
 """
 
 from __future__ import annotations
@@ -17,7 +19,6 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-import torch
 from PIL import Image, ImageOps
 
 from .errors import Im2VecError, InputError
@@ -201,29 +202,40 @@ def _one_line(exc: BaseException) -> str:
     return text[:200]
 
 
-def image_to_tensor(img: Image.Image) -> torch.Tensor:
-    """Any Pillow mode -> ``(3, H, W)`` float in [0, 1], alpha composited onto white."""
+def image_to_array(img: Image.Image) -> np.ndarray:
+    """Any Pillow mode -> ``(H, W, 3)`` float32 in [0, 1], alpha composited onto white."""
     if img.mode in ("I;16", "I;16B", "I;16L", "I;16N", "I"):
         arr = np.asarray(img, dtype=np.float64)
         # 16 bits a sample (a near-black one too); 32-bit integers say nothing of their range: by their values
         top = 65535.0 if img.mode.startswith("I;16") or arr.max() > 255 else 255.0
-        g = torch.from_numpy(arr / top).float().clamp(0, 1)
-        return g.unsqueeze(0).expand(3, -1, -1).contiguous()
+        return _grey((arr / top).astype(np.float32).clip(0, 1))
     if img.mode == "F":
-        arr = np.nan_to_num(np.asarray(img, dtype=np.float32), nan=1.0, posinf=1.0, neginf=0.0)
-        g = torch.from_numpy(arr).clamp(0, 1)
-        return g.unsqueeze(0).expand(3, -1, -1).contiguous()
+        return _grey(np.nan_to_num(np.asarray(img, dtype=np.float32), nan=1.0, posinf=1.0, neginf=0.0).clip(0, 1))
     if img.mode in ("LAB", "HSV", "YCbCr"):
         img = img.convert("RGB")
     if "A" not in img.getbands() and "transparency" not in img.info:
-        # opaque: 8-bit to float once (a 64 MP picture: 0.8 GB, not 3 GB of float temporaries)
-        rgb = torch.from_numpy(np.array(img.convert("RGB"))).permute(2, 0, 1).contiguous()  # (3, H, W) uint8
-        return rgb.float().div_(255)
-    rgba = img.convert("RGBA")
-    arr = torch.from_numpy(np.asarray(rgba, dtype=np.float32) / 255.0)  # (H, W, 4)
+        rgb = np.asarray(img.convert("RGB")).astype(np.float32)  # 8-bit to float once: no float64 temporaries
+        rgb /= 255
+        return rgb
+    arr = np.asarray(img.convert("RGBA"), dtype=np.float32) / 255.0  # (H, W, 4)
     rgb, a = arr[..., :3], arr[..., 3:]
-    out = rgb * a + (1 - a)  # white background
-    return out.permute(2, 0, 1).contiguous()  # (3, H, W)
+    return rgb * a + (1 - a)  # white background
+
+
+def _grey(g: np.ndarray) -> np.ndarray:
+    return np.repeat(g[..., None], 3, axis=2)
+
+
+def image_to_tensor(img: Image.Image):
+    """Any Pillow mode -> ``(3, H, W)`` float tensor in [0, 1], alpha composited onto white."""
+    return to_tensor(image_to_array(img))
+
+
+def to_tensor(picture: np.ndarray):
+    """A picture ``(H, W, 3)`` -> its ``(3, H, W)`` float tensor (torch is imported here, not before)."""
+    import torch
+
+    return torch.from_numpy(picture).permute(2, 0, 1).contiguous()
 
 
 def read_capped(stream, name: str, limit: int = MAX_INPUT_BYTES) -> bytes:
@@ -275,17 +287,22 @@ def read_regular(path: str | os.PathLike, limit: int, what: str = "file") -> byt
         return read_capped(f, str(path), limit)
 
 
-def load_image(path: str | os.PathLike, data: bytes | None = None, max_pixels: int = MAX_PIXELS) -> torch.Tensor:
-    """Read an image file (or given bytes) as ``(3, H, W)`` in [0, 1] over white (at most
+def load_picture(path: str | os.PathLike, data: bytes | None = None, max_pixels: int = MAX_PIXELS) -> np.ndarray:
+    """Read an image file (or given bytes) as ``(H, W, 3)`` float32 in [0, 1] over white (at most
     ``max_pixels``, checked before decoding)."""
     name = str(path)
     img = open_image(read_file(path) if data is None else data, name, max_pixels)
     try:
-        return image_to_tensor(img)
+        return image_to_array(img)
     except MemoryError:
         raise InputError(f"{name}: not enough memory to convert this image") from None
     except Exception as exc:  # noqa: BLE001 - exotic modes Pillow cannot convert
         raise InputError(f"{name}: unsupported image mode {img.mode} ({_one_line(exc)})") from None
+
+
+def load_image(path: str | os.PathLike, data: bytes | None = None, max_pixels: int = MAX_PIXELS):
+    """``load_picture`` as a ``(3, H, W)`` tensor."""
+    return to_tensor(load_picture(path, data, max_pixels))
 
 
 def encode_png(img: Image.Image) -> bytes:
@@ -295,40 +312,46 @@ def encode_png(img: Image.Image) -> bytes:
     return buf.getvalue()
 
 
-def tensor_to_png(img: torch.Tensor) -> bytes:
-    """``(3, H, W)`` or ``(1, H, W)`` in [0, 1] -> PNG bytes."""
-    arr = (img.detach().float().clamp(0, 1) * 255).round().to(torch.uint8).cpu()
+def tensor_to_png(img) -> bytes:
+    """``(3, H, W)`` or ``(1, H, W)`` tensor in [0, 1] -> PNG bytes."""
+    arr = (img.detach().float().clamp(0, 1) * 255).round().byte().cpu().numpy()
     if arr.shape[0] == 1:
-        return encode_png(Image.fromarray(arr[0].numpy(), "L"))
-    return encode_png(Image.fromarray(arr.permute(1, 2, 0).numpy(), "RGB"))
+        return encode_png(Image.fromarray(arr[0], "L"))
+    return encode_png(Image.fromarray(arr.transpose(1, 2, 0), "RGB"))
 
 
-def as_image(image) -> torch.Tensor:
-    """A picture in any of the forms the Python API takes -> ``(3, H, W)`` float in [0, 1] over white.
+def as_picture(image) -> np.ndarray:
+    """A picture in any of the forms the Python API takes -> ``(H, W, 3)`` float32 in [0, 1] over white.
 
     Args:
         image: a Pillow image; a NumPy array ``(H, W)``, ``(H, W, 3)`` or ``(H, W, 4)`` (uint8 in
             [0, 255], or float in [0, 1]); a tensor ``(3, H, W)`` in [0, 1]; or a file path.
     """
     if isinstance(image, (str, os.PathLike)):
-        return load_image(image)
+        return load_picture(image)
     if isinstance(image, Image.Image):
-        out = image_to_tensor(image)
-    elif isinstance(image, torch.Tensor):
+        out = image_to_array(image)
+    elif hasattr(image, "detach") and hasattr(image, "permute"):  # a tensor (torch is not imported for this)
         if image.dim() != 3 or image.shape[0] != 3:
             raise ValueError(f"image tensor must be (3, H, W), got {tuple(image.shape)}")
         out = image.detach().float().cpu()
         if out.numel() and (out.min() < 0 or out.max() > 1):  # a copy only where one is needed
             out = out.clamp(0, 1)
+        out = np.ascontiguousarray(out.permute(1, 2, 0).numpy())
     else:
-        out = _array_to_tensor(image)
-    if min(out.shape[1:]) < MIN_SIDE:
-        raise InputError(f"image too small ({out.shape[2]}x{out.shape[1]} pixels; at least {MIN_SIDE} per side)")
+        out = _array_to_picture(image)
+    if min(out.shape[:2]) < MIN_SIDE:
+        raise InputError(f"image too small ({out.shape[1]}x{out.shape[0]} pixels; at least {MIN_SIDE} per side)")
     return out
 
 
-def _array_to_tensor(image) -> torch.Tensor:
-    """A NumPy-like ``(H, W)``, ``(H, W, 3)`` or ``(H, W, 4)`` array -> ``(3, H, W)`` in [0, 1]."""
+def as_image(image):
+    """``as_picture`` as a ``(3, H, W)`` tensor."""
+    return to_tensor(as_picture(image))
+
+
+def _array_to_picture(image) -> np.ndarray:
+    """A NumPy-like ``(H, W)``, ``(H, W, 3)`` or ``(H, W, 4)`` array -> ``(H, W, 3)`` in [0, 1]."""
     arr = np.asarray(image)
     if arr.ndim not in (2, 3) or (arr.ndim == 3 and arr.shape[2] not in (3, 4)):
         raise ValueError(f"image array must be (H, W), (H, W, 3) or (H, W, 4), got {arr.shape}")
@@ -338,9 +361,8 @@ def _array_to_tensor(image) -> torch.Tensor:
         arr = np.nan_to_num(arr.astype(np.float32), nan=1.0, posinf=1.0, neginf=0.0).clip(0, 1)
     else:
         raise ValueError(f"image array must be uint8 or float, got {arr.dtype}")
-    t = torch.from_numpy(np.ascontiguousarray(arr))
-    if t.dim() == 2:
-        t = t[..., None].expand(-1, -1, 3)
-    if t.shape[2] == 4:
-        t = t[..., :3] * t[..., 3:] + (1 - t[..., 3:])  # alpha over white
-    return t.permute(2, 0, 1).contiguous()  # (3, H, W)
+    if arr.ndim == 2:
+        return _grey(arr)
+    if arr.shape[2] == 4:
+        arr = arr[..., :3] * arr[..., 3:] + (1 - arr[..., 3:])  # alpha over white
+    return np.ascontiguousarray(arr)

@@ -8,16 +8,15 @@ from __future__ import annotations
 
 import dataclasses
 
-import numpy as np
 import torch
 
 from .errors import ConfigError, ModelError
 from .frame import Placement, resize_square, to_model_frame
 from .model.vae import Decoded, Im2Vec
 from .options import MAX_TEMPERATURE, PRIORS
-from .raster import line_controls
 from .trace import cleaned
-from .vector import VectorImage, VectorShape, from_tensors, resolve_overlaps
+from .trace import flat_result as trace_flat_result
+from .vector import VectorImage, from_tensors, resolve_overlaps
 
 MIN_AREA = 1e-4  # paths below this area (normalised units) are unused and not exported
 
@@ -54,33 +53,9 @@ def to_vector(dec: Decoded, i: int, place: Placement, *, max_paths: int | None =
                         fill_rule=dec.fill_rule)
 
 
-UNIFORM_TOL = 2 / 255  # an image whose pixels all lie within this of each other is one flat colour
-
-
-def uniform_color(image: torch.Tensor) -> tuple[float, float, float] | None:
-    """The colour of a flat ``(3, H, W)`` image, or ``None`` when it has any detail."""
-    lo, hi = image.amin(dim=(1, 2)), image.amax(dim=(1, 2))  # (3,)
-    if bool(((hi - lo) <= UNIFORM_TOL).all()):
-        return tuple(float(v) for v in image.mean(dim=(1, 2)).tolist())
-    return None
-
-
 def flat_result(image: torch.Tensor) -> VectorImage | None:
     """The vector image of a flat ``(3, H, W)`` image (one colour: nothing to fit), else ``None``."""
-    color = uniform_color(image)
-    return None if color is None else flat_vector(image.shape[2], image.shape[1], color)
-
-
-def flat_vector(w: int, h: int, color: tuple[float, float, float]) -> VectorImage:
-    """A flat ``w x h`` image as vectors: nothing on white, else one canvas-sized square in ``color``."""
-    if min(color) >= 1 - UNIFORM_TOL:
-        return VectorImage(float(w), float(h), [])
-    corners = np.array([[0, 0], [w, 0], [w, h], [0, h]], dtype=np.float64)
-    pts = []
-    for i in range(4):  # straight sides as cubics
-        a, b = corners[i], corners[(i + 1) % 4]
-        pts += [a, *line_controls(a, b)]
-    return VectorImage(float(w), float(h), [VectorShape([np.stack(pts)], color, "nonzero")])
+    return trace_flat_result(image.detach().permute(1, 2, 0).cpu().numpy())
 
 
 DEFAULT_QUALITY = 5e-4  # --segments auto: error per added segment (MSE on coverage) worth paying for

@@ -22,17 +22,19 @@ from .events import WorkerDied
 from .options import VectorizeOptions
 
 _state: dict = {}
+TRACE_IMPORTS = ["scipy.ndimage", "scipy.cluster.vq", "contourpy", "pathops", "skimage.filters", "skimage.morphology"]  # what tracing imports on first use:
+# once in the fork server, not once a worker
 
 
 def _init(model_ref: str, device: str, seed: int, threads: int, options: VectorizeOptions | None) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and ends the pool
 
-    from .api import load_model
     from .runtime import seed_everything, set_threads
+    from .vectorizing import ModelRef
 
     set_threads(threads)
     seed_everything(seed)
-    _state.update(model=load_model(model_ref, device), options=options)
+    _state.update(model=ModelRef(model_ref, device), options=options)  # loaded where a picture needs it
 
 
 def _run(pictures: list) -> list:
@@ -43,7 +45,7 @@ def _run(pictures: list) -> list:
 
 def vectorize_chunks(chunks: Iterable[list], model_ref: str, *, jobs: int, threads: int | None = None,
                      device: str = "auto", seed: int = 0, options: VectorizeOptions | None = None,
-                     on_event: Callable[[WorkerDied], None] | None = None) -> Iterator[list]:
+                     on_event: Callable[[WorkerDied], None] | None = None, model: bool = True) -> Iterator[list]:
     """``api.vectorize_each(chunk, model, options)`` for each chunk of pictures, in ``jobs``
     worker processes (each with ``threads`` torch threads, default the free cores shared
     among the jobs, ``runtime.free_cores``, and the model
@@ -53,7 +55,10 @@ def vectorize_chunks(chunks: Iterable[list], model_ref: str, *, jobs: int, threa
 
     A worker that dies (killed, out of memory, a crash in native code) is noticed, never waited
     on: ``on_event`` hears ``WorkerDied``, the chunks in flight are vectorized again one at a time
-    in a fresh worker, and the pictures of a chunk whose worker dies again fail (named)."""
+    in a fresh worker, and the pictures of a chunk whose worker dies again fail (named).
+
+    ``model``: some pictures will need the model: torch is imported once, before the workers fork
+    (else each worker imports it where a picture first needs it)."""
     if jobs < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
     if threads is None:
@@ -61,7 +66,8 @@ def vectorize_chunks(chunks: Iterable[list], model_ref: str, *, jobs: int, threa
 
         threads = max(1, free_cores() // jobs)
     args = (model_ref, device, seed, threads, options)
-    pool, spare = _Pool(jobs, args), _Pool(1, args)
+    preload = ["im2vec_cli.api", *TRACE_IMPORTS] + (["im2vec_cli.refine.batch", "im2vec_cli.infer"] if model else [])
+    pool, spare = _Pool(jobs, args, preload), _Pool(1, args, preload)
     pending: collections.deque = collections.deque()
     done = False
     try:
@@ -96,17 +102,17 @@ def _next(pool: _Pool, spare: _Pool, pending: collections.deque, on_event) -> It
 
 
 class _Pool:
-    """A process pool started on first use (forkserver: one import of torch, forked per worker),
-    started again after it broke."""
+    """A process pool started on first use (forkserver: ``preload``'s modules imported once, forked
+    per worker), started again after it broke."""
 
-    def __init__(self, jobs: int, args: tuple):
-        self.jobs, self.args, self.executor = jobs, args, None
+    def __init__(self, jobs: int, args: tuple, preload: list[str]):
+        self.jobs, self.args, self.preload, self.executor = jobs, args, preload, None
 
     def submit(self, chunk: list):
         if self.executor is None:
             if "forkserver" in multiprocessing.get_all_start_methods():
                 ctx = multiprocessing.get_context("forkserver")
-                ctx.set_forkserver_preload(["im2vec_cli.api"])
+                ctx.set_forkserver_preload(self.preload)
             else:  # Windows
                 ctx = multiprocessing.get_context("spawn")
             self.executor = ProcessPoolExecutor(self.jobs, mp_context=ctx, initializer=_init, initargs=self.args)
@@ -145,3 +151,53 @@ class _Pool:
                 w.join(5)
         self.executor = None
         return died
+
+
+# What a folder costs, for ``plan_jobs`` (2-core machine, bench/speed.py's pictures; seconds)
+WORKER_START = 0.4  # a worker process: Python, NumPy, Pillow and im2vec's tracing imported
+MODEL_START = 2.5  # torch and the model loaded in a worker (or in the process) whose pictures need them
+TRACE_PICTURE = 0.05  # a traced picture: per picture, ...
+TRACE_MEGAPIXEL = 1.5  # ... and per million pixels
+MODEL_PICTURE = 0.15  # a picture refined or drawn by the model, in a batch
+
+
+def plan(options: VectorizeOptions, sides: list[tuple[int, int] | None], count: int, *, most: int,
+         jobs: int | None = None, gpu: bool = False, chunk: int = 32) -> tuple[int, int, bool]:
+    """How to vectorize ``count`` pictures with ``options``: the worker processes (``jobs``, else
+    ``plan_jobs``'s; 1 on a GPU or for the model's own paths unrefined; at most one a chunk), the pictures a chunk (``chunk`` where some are refined together,
+    so that the SVGs do not depend on the workers; else about eight chunks a worker, so that none
+    waits long on the last), and whether most pictures need the model
+    (clean refined pictures up to the polish's size; all with the model's parts or no refinement),
+    when torch is best imported once before the workers fork.
+    ``sides``: the ``(W, H)`` of some of them (``None`` where unknown)."""
+    from .refine.settings import EFFORTS
+
+    s = EFFORTS[options.effort]
+    side = (s.max_side if s.outline_steps > 0 else 0) if options.refine and options.parts == "clean" else None
+    batched = not options.refine and options.parts == "model"  # one forward pass: a pool only slows it down
+    if jobs is None:
+        jobs = 1 if gpu or batched else plan_jobs(sides, count, most, side)
+    jobs = max(1, min(jobs, count))
+    small = [sz is not None and max(sz) <= side for sz in sides] if side is not None else [True]
+    heavy = sum(small) * 2 >= max(1, len(small))  # most pictures need torch: imported once, before the fork
+    if not any(small):  # each traced alone: about eight chunks a worker
+        chunk = max(1, min(chunk, -(-count // (8 * jobs))))  # (else refined together, ``chunk`` at a time
+    return min(jobs, -(-count // chunk)), chunk, heavy  # whatever the workers: the same SVGs for any -j)
+
+
+def plan_jobs(sides: list[tuple[int, int] | None], count: int, most: int, model_side: int | None) -> int:
+    """The worker processes (1: none, in this process) that vectorize ``count`` pictures soonest, of
+    at most ``most``, by the cost measured above: each worker's start, and the pictures' work shared.
+
+    ``sides``: the ``(W, H)`` of some of the pictures (``None`` where unknown: a 512 px one is
+    assumed), taken as a sample of all; ``model_side``: a picture of at most this longer side needs
+    the model (``None``: every picture does)."""
+    known = [s if s is not None else (512, 512) for s in sides] or [(512, 512)]
+    model = [model_side is None or max(s) <= model_side for s in known]
+    each = [MODEL_PICTURE if m else TRACE_PICTURE + TRACE_MEGAPIXEL * s[0] * s[1] / 1e6 for s, m in zip(known, model)]
+    work = sum(each) / len(each) * count
+    start = MODEL_START if any(model) else 0.0
+
+    def finish(jobs: int) -> float:  # this process has its imports already; a worker pays its own
+        return start + work if jobs == 1 else WORKER_START + start + work / jobs
+    return min(range(1, max(1, min(most, count)) + 1), key=finish)

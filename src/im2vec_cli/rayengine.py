@@ -36,16 +36,16 @@ class Vectorizer:
 
     def __init__(self, model: str = "fonts", options: VectorizeOptions | None = None, device: str = "auto",
                  seed: int = 0, threads: int = 1):
-        from .api import load_model
+        from .api import ModelRef
         from .runtime import seed_everything, set_threads
 
         set_threads(threads)
         seed_everything(seed)
-        self.model, self.options = load_model(model, device), options or VectorizeOptions()
+        self.model, self.options = ModelRef(model, device), options or VectorizeOptions()  # loaded where needed
 
     def __call__(self, batch: dict) -> dict:
         from .api import vectorize_each
-        from .files import load_image
+        from .files import load_picture
 
         paths = [str(p) for p in batch["path"]]
         data = batch.get("bytes")
@@ -53,7 +53,7 @@ class Vectorizer:
         for i, path in enumerate(paths):
             try:
                 raw = None if data is None else bytes(data[i])
-                good.append((i, load_image(path, raw, self.options.max_input_pixels())))
+                good.append((i, load_picture(path, raw, self.options.max_input_pixels())))
             except Im2VecError as exc:
                 errors[i] = str(exc)
         for (i, _), vec in zip(good, vectorize_each([p for _, p in good], self.model, self.options)):

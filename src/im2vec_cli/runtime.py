@@ -2,20 +2,33 @@
 
 from __future__ import annotations
 
+import contextlib
+import gc
 import os
 import random
+import re
 import sys
 import time
 
 import numpy as np
-import torch
-import torch.distributed as dist
 
 from .errors import Im2VecError
 
+DEVICE_NAME = re.compile(r"auto|(cpu|mps|cuda)(:\d+)?")
 
-def resolve_device(spec: str = "auto") -> torch.device:
+
+def check_device(spec) -> None:
+    """``Im2VecError`` for a device name ``resolve_device`` would refuse whatever the machine
+    (told without importing torch); a ``torch.device`` passes."""
+    if isinstance(spec, str) and not DEVICE_NAME.fullmatch(spec):
+        raise Im2VecError(f"unknown device {spec!r} (use auto, cpu, cuda[:N] or mps)")
+
+
+def resolve_device(spec: str = "auto"):
     """``auto`` -> CUDA if present, then MPS, else CPU; otherwise validate ``cpu|cuda[:N]|mps``."""
+    import torch
+
+    torch_ready()
     if spec == "auto":
         if torch.cuda.is_available():
             return torch.device("cuda")
@@ -33,7 +46,7 @@ def resolve_device(spec: str = "auto") -> torch.device:
     if dev.type == "mps" and not (getattr(torch.backends, "mps", None) and torch.backends.mps.is_available()):
         raise Im2VecError("device 'mps' asked for but MPS is not available")
     if dev.type not in ("cpu", "cuda", "mps"):
-        raise Im2VecError(f"unsupported device {spec!r}")
+        raise Im2VecError(f"unknown device {spec!r} (use auto, cpu, cuda[:N] or mps)")
     return dev
 
 
@@ -46,7 +59,8 @@ def cpu_cores() -> int:
 
 def free_cores(samples: int = 3, interval: float = 0.01) -> int:
     """The cores not busy with other programs (at least 1): the cores less the other tasks
-    running now (``/proc/loadavg``'s count of runnable tasks, which includes this process;
+    running now (``/proc/loadavg``'s count of runnable tasks, less this process's own threads
+    that run: NumPy's BLAS threads spin a moment after its import, and read as a busy core;
     the fewest of ``samples`` readings ``interval`` s apart, so that a task passing through
     does not count; elsewhere the one-minute load average)."""
     cores = cpu_cores()
@@ -56,14 +70,26 @@ def free_cores(samples: int = 3, interval: float = 0.01) -> int:
             if i:
                 time.sleep(interval)
             with open("/proc/loadavg") as f:
-                running.append(int(f.read().split()[3].split("/")[0]))
-        others = min(running) - 1
+                running.append(int(f.read().split()[3].split("/")[0]) - _own_running())
+        others = min(running)
     except (OSError, ValueError, IndexError):
         try:
             others = round(os.getloadavg()[0])
         except (OSError, AttributeError):
             others = 0
     return max(1, min(cores, cores - others))
+
+
+def _own_running() -> int:
+    """This process's threads that are running or runnable now (at least 1: the one asking)."""
+    count = 0
+    for task in os.listdir("/proc/self/task"):
+        try:
+            with open(f"/proc/self/task/{task}/stat") as f:
+                count += f.read().rsplit(")", 1)[1].split()[0] == "R"
+        except OSError:  # ended meanwhile
+            continue
+    return max(1, count)
 
 
 def intra_op_threads(pictures: int, jobs: int = 1, free: int | None = None) -> int:
@@ -81,17 +107,40 @@ def intra_op_threads(pictures: int, jobs: int = 1, free: int | None = None) -> i
     return max(1, (free_cores() if free is None else free) // max(1, jobs))
 
 
+_PENDING: dict = {}  # what set_threads and seed_everything leave for torch until it is imported
+
+
 def set_threads(n: int) -> None:
-    """Run torch's CPU ops on ``n`` threads, unless ``OMP_NUM_THREADS`` says how many."""
+    """Run torch's CPU ops on ``n`` threads, unless ``OMP_NUM_THREADS`` says how many (now if torch
+    is imported, else when it is: ``torch_ready``)."""
     if not os.environ.get("OMP_NUM_THREADS"):
-        torch.set_num_threads(max(1, n))
+        _PENDING["threads"] = max(1, n)
+        _apply_if_imported()
 
 
 def seed_everything(seed: int) -> None:
-    """Seed Python, NumPy and torch (all devices)."""
+    """Seed Python, NumPy and torch (all devices; torch now if it is imported, else when it is)."""
     random.seed(seed)
     np.random.seed(seed % 2**32)
-    torch.manual_seed(seed)
+    _PENDING["seed"] = seed
+    _apply_if_imported()
+
+
+def _apply_if_imported() -> None:
+    if "torch" in sys.modules:
+        torch_ready()
+
+
+def torch_ready() -> None:
+    """Give torch the threads and seed asked for before it was imported (``set_threads``,
+    ``seed_everything``): whatever is about to compute with torch calls this first (loading a
+    model does, through ``resolve_device``)."""
+    import torch
+
+    if "threads" in _PENDING:
+        torch.set_num_threads(_PENDING.pop("threads"))
+    if "seed" in _PENDING:
+        torch.manual_seed(_PENDING.pop("seed"))
 
 
 def progress(iterable=None, **kwargs):
@@ -104,9 +153,12 @@ def progress(iterable=None, **kwargs):
     return tqdm(iterable, **kwargs)
 
 
-def setup_distributed(device: torch.device) -> tuple[torch.device, int, int]:
+def setup_distributed(device):
     """Under ``torchrun`` (``WORLD_SIZE`` > 1) join the process group (gloo on CPU, nccl on
     CUDA, one GPU per local rank). Returns the device, the rank and the world size."""
+    import torch
+    import torch.distributed as dist
+
     if int(os.environ.get("WORLD_SIZE", "1")) > 1 and not dist.is_initialized():
         dist.init_process_group("nccl" if device.type == "cuda" else "gloo")
         if device.type == "cuda":
@@ -158,3 +210,29 @@ class HeldSignals:
             signal.signal(signum, handler)
         if kind is None:
             self.deliver()
+
+
+def gpu_likely(spec: str) -> bool:
+    """Whether the device ``spec`` may be a GPU, told without importing torch: ``cuda`` or ``mps``
+    named, or ``auto`` where an NVIDIA driver is loaded or on macOS (MPS)."""
+    if spec == "cpu":
+        return False
+    if spec != "auto":
+        return True
+    return os.path.exists("/proc/driver/nvidia/version") or sys.platform == "darwin"
+
+
+@contextlib.contextmanager
+def collector_paused():
+    """Imports and model loading without the cyclic garbage collector, whose passes over the
+    millions of objects that torch and the model allocate, and that live as long as the
+    process, cost 0.2-0.3 s of a one-picture `vectorize` (bench/cli.py); those objects are
+    then frozen out of later collections (``gc.freeze``), and collection goes on as before."""
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        gc.freeze()
+        if was:
+            gc.enable()

@@ -143,8 +143,8 @@ def test_determinism_byte_identical(tmp_path, model_dir):
 def test_interrupt_keeps_exactly_the_finished_svgs(tmp_path, model_dir, monkeypatch, refine):
     """Ctrl-C after 5 images (of 40; chunks of 32 without refinement): every finished SVG is
     on disk and complete, nothing else is, and the exit code is 130."""
-    import im2vec_cli.api as api
     import im2vec_cli.cli.convert as convert
+    import im2vec_cli.vectorizing as api  # vectorize_each's vectorize
 
     d = tmp_path / "in"
     d.mkdir()
@@ -161,7 +161,8 @@ def test_interrupt_keeps_exactly_the_finished_svgs(tmp_path, model_dir, monkeypa
         return out
 
     monkeypatch.setattr(api, "vectorize", interrupted)
-    res = CliRunner().invoke(cli, ["vectorize", str(d), "-o", str(tmp_path / "out"), refine, "--model", model_dir])
+    res = CliRunner().invoke(cli, ["vectorize", str(d), "-o", str(tmp_path / "out"), refine, "--model", model_dir,
+                                   "-j", "1"])
     assert res.exit_code == 130, res.output
     written = sorted((tmp_path / "out").iterdir())
     assert [p.name for p in written] == [f"{i:02d}.svg" for i in range(5)]
@@ -360,8 +361,10 @@ def test_a_killed_worker_is_noticed(tmp_path, model_dir, kills):
 
 
 def test_jobs_are_capped_by_the_work(tmp_path, model_dir, monkeypatch):
-    """`-j 6` on 40 pictures (two chunks) starts two workers, not six model copies; on 2 pictures
-    (one chunk) none: the work runs here."""
+    """`-j 6` on 40 refined pictures (two chunks of 32) starts two workers, not six model copies;
+    on 2 (one chunk) none: the work runs here. Pictures each traced alone (a draft) are chunked
+    finer, about eight chunks a worker: 2 of them start 2 workers (issue 70: every core from two
+    pictures up), 40 of them all six."""
     import im2vec_cli.parallel as parallel
     from im2vec_cli.vector import VectorImage
 
@@ -373,13 +376,14 @@ def test_jobs_are_capped_by_the_work(tmp_path, model_dir, monkeypatch):
             yield [VectorImage(a.shape[1], a.shape[0]) for a in c]
 
     monkeypatch.setattr(parallel, "vectorize_chunks", fake)
-    for n, want in ((40, [2]), (2, [])):
-        d = tmp_path / f"in{n}"
+    for n, effort, want in ((40, "fast", [2]), (2, "fast", []), (2, "draft", [2]), (40, "draft", [6])):
+        d = tmp_path / f"in{n}{effort}"
         d.mkdir()
         for i in range(n):
             glyph_like(32).save(d / f"g{i:03d}.png")
         calls.clear()
-        res = CliRunner().invoke(cli, ["vectorize", str(d), "-o", str(tmp_path / f"out{n}"), "--model", model_dir,
-                                       "-j", "6", "--effort", "draft"])
+        out = tmp_path / f"out{n}{effort}"
+        res = CliRunner().invoke(cli, ["vectorize", str(d), "-o", str(out), "--model", model_dir, "-j", "6",
+                                       "--effort", effort])
         assert res.exit_code == 0, res.output
-        assert calls == want and len(list((tmp_path / f"out{n}").glob("*.svg"))) == n
+        assert calls == want and len(list(out.glob("*.svg"))) == n

@@ -190,7 +190,7 @@ def test_training_on_one_image_is_one_line_and_on_two_needs_no_prior(tmp_path):
 # --- the surprises -----------------------------------------------------------------------
 
 def test_a_folder_named_like_a_model_does_not_shadow_it(tmp_path, monkeypatch):
-    from im2vec_cli.model.pretrained import REPO_MODELS, resolve_model
+    from im2vec_cli.config import REPO_MODELS, resolve_model
 
     monkeypatch.chdir(tmp_path)
     (tmp_path / "fonts").mkdir()

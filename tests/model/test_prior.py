@@ -13,11 +13,12 @@ from PIL import Image
 
 import im2vec_cli as iv
 from im2vec_cli.cli import cli
+from im2vec_cli.config import REPO_MODELS
 from im2vec_cli.data.folder import folder_labels
 from im2vec_cli.errors import ModelError
 from im2vec_cli.evaluate import confident_share, features_of, knn_radii, precision_recall
 from im2vec_cli.model.features import FeatureConfig, FeatureNet
-from im2vec_cli.model.pretrained import REPO_MODELS, save_pretrained
+from im2vec_cli.model.pretrained import save_pretrained
 from im2vec_cli.model.prior import PRIOR_WEIGHTS, LatentPrior, fit_prior
 from im2vec_cli.train_features import JUNK, junk_images
 from im2vec_cli.vector import from_svg, rasterize_svg

@@ -7,10 +7,11 @@ import numpy as np
 import pytest
 import torch
 
+from im2vec_cli.config import REPO_MODELS
 from im2vec_cli.files import load_image
 from im2vec_cli.frame import Placement
 from im2vec_cli.infer import model_input, to_vector, vectorize
-from im2vec_cli.model.pretrained import REPO_MODELS, from_pretrained
+from im2vec_cli.model.pretrained import from_pretrained
 from im2vec_cli.model.segments import K_MIN, SegmentPredictor, choose_segments, curve, fit_loss
 from im2vec_cli.raster import render_paths
 from im2vec_cli.train_aux import AuxSettings, train_segment_predictor

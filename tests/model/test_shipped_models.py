@@ -6,8 +6,9 @@ from pathlib import Path
 
 import pytest
 
+from im2vec_cli.config import REPO_MODELS
 from im2vec_cli.evaluate import reconstruction_l2
-from im2vec_cli.model.pretrained import REPO_MODELS, from_pretrained
+from im2vec_cli.model.pretrained import from_pretrained
 
 MODELS = sorted(str(p.parent.relative_to(REPO_MODELS)) for p in REPO_MODELS.glob("**/config.json")
                 if json.loads(p.read_text()).get("class_name") == "ModelConfig")  # not the feature nets (features/)

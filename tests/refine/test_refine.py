@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 import torch
 
+from im2vec_cli.config import REPO_MODELS
 from im2vec_cli.files import load_image
 from im2vec_cli.infer import vectorize
-from im2vec_cli.model.pretrained import REPO_MODELS, from_pretrained
+from im2vec_cli.model.pretrained import from_pretrained
 from im2vec_cli.raster import set_compile
 from im2vec_cli.refine import EFFORTS, RefineSettings, refine
 from im2vec_cli.vector import rasterize_svg, to_svg

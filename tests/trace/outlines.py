@@ -11,7 +11,7 @@ import pytest
 import torch
 from scipy.ndimage import distance_transform_edt, label
 
-from im2vec_cli.model.pretrained import REPO_MODELS
+from im2vec_cli.config import REPO_MODELS
 from im2vec_cli.vector import rasterize_svg
 
 needs_fonts = pytest.mark.skipif(not (REPO_MODELS / "fonts" / "config.json").exists(), reason="no shipped fonts model")

@@ -12,8 +12,8 @@ from scipy.ndimage import label
 
 from im2vec_cli import api
 from im2vec_cli.cli import cli
+from im2vec_cli.config import REPO_MODELS
 from im2vec_cli.files import load_image
-from im2vec_cli.model.pretrained import REPO_MODELS
 from im2vec_cli.trace import OutlineSettings, split_where_wrong
 from im2vec_cli.trace.pipeline import _box3
 from im2vec_cli.vector import VectorImage, VectorShape, rasterize_svg, to_svg

@@ -156,7 +156,7 @@ class NoRenderer:
 
 def test_a_draft_traces_and_fits_without_rendering():
     clean = drawing(64)
-    (vec, info), = clean_outlines([torch.from_numpy(clean).permute(2, 0, 1)], NoRenderer(), OutlineSettings(polish=False))
+    (vec, info), = clean_outlines([clean], NoRenderer(), OutlineSettings(polish=False))
     back = rasterize_svg(vec.to_svg(), 64, 64)
     assert iou(back.mean(-1) < 0.5, clean.mean(-1) < 0.5) > 0.95 and info["loss_end"] is None
 

@@ -7,7 +7,6 @@ batch failed); 2 bad usage; 130 interrupted (Ctrl-C); 143 terminated (SIGTERM); 
 from __future__ import annotations
 
 import contextlib
-import gc
 import signal
 import traceback
 
@@ -85,18 +84,11 @@ def one_line(message: str) -> str:
 
 @contextlib.contextmanager
 def starting_up():
-    """Imports and model loading without the cyclic garbage collector, whose passes over the
-    millions of objects that torch and the model allocate, and that live as long as the
-    process, cost 0.2-0.3 s of a one-picture `vectorize` (bench/cli.py); those objects are
-    then frozen out of later collections (``gc.freeze``), and collection goes on as before."""
-    was = gc.isenabled()
-    gc.disable()
-    try:
+    """Imports and model loading without the cyclic garbage collector (``runtime.collector_paused``)."""
+    from ..runtime import collector_paused
+
+    with collector_paused():
         yield
-    finally:
-        gc.freeze()
-        if was:
-            gc.enable()
 
 
 def warn(message: str) -> None:

@@ -20,12 +20,12 @@ from .batch import (
     refuse_overwrite,
     run_batch,
 )
-from .options import BYTES, Finite, load_model, model_options, nonempty, parse_segments, set_threads_for
+from .options import BYTES, Finite, lazy_model, load_model, model_options, nonempty, parse_segments, set_threads_for
 from .streams import load_input_image, native_stderr_quiet, read_input, write_output
 
 VECTORIZE_CHUNK = 32  # images per batch (one forward pass, one refinement batch): bounded memory, written as done
-JOBS_MIN_IMAGES = 64  # --jobs auto: worker processes (their start-up, about 3 s each) pay from this many inputs
-MAX_AUTO_JOBS = 8  # --jobs auto: at most this many (each holds the model and about 0.5 GB)
+MAX_AUTO_JOBS = 8  # --jobs auto: at most this many (each may hold the model and about 0.5 GB)
+PLAN_SAMPLE = 64  # --jobs auto: the pictures whose sizes are read to weigh the work (parallel.plan_jobs)
 
 
 @cli.command(epilog=EXIT_HELP)
@@ -71,8 +71,8 @@ MAX_AUTO_JOBS = 8  # --jobs auto: at most this many (each holds the model and ab
               help="Merge segments while the outline moves less than this many input pixels. [0.25 with --refine, else 0]")
 @click.option("--jobs", "-j", type=click.IntRange(1, 64), default=None,
               help="Worker processes for several inputs, each with its own copy of the model (on 2 cores, 2 refine "
-                   f"about 1.5x faster than 1). [the CPU cores, at most {MAX_AUTO_JOBS}, from {JOBS_MIN_IMAGES} inputs "
-                   "refined or drawn clean on the CPU; else 1]")
+                   f"about 1.5x faster than 1). [as many as finish soonest by the pictures' sizes, at most the free "
+                   f"CPU cores and {MAX_AUTO_JOBS}; 1 on a GPU]")
 @click.option("--compile/--no-compile", "compile_", default=False, show_default=True,
               help="Refine through torch.compile'd kernels: about 20 s to compile per image size the first time on a "
                    "machine (cached after); on 2 CPU cores it did not pay on a folder of 1000 glyphs (bench/folder.py).")
@@ -115,14 +115,13 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, toleranc
     free = set_threads_for(len(items))
     with starting_up():  # (load_model pauses the collector too)
         from .. import api, runtime
-    model = load_model(model_name, device, seed)
-    many = (refine or parts == "clean") and len(items) > 1  # work per picture beyond the batched forward pass
+    model = lazy_model(model_name, device, seed)  # loaded where a picture needs it: a traced one does not
     options = VectorizeOptions(refine=refine, effort=effort, segments=k, quality=quality, max_paths=max_paths,
                                simplify_px=simplify_px, parts=parts, tolerance=tolerance, colors=colors,
                                compile=compile_, max_memory=max_memory, preset=preset, speckle=speckle)
-    if jobs is None and engine == "local":
-        on_cpu = next(model.parameters()).device.type == "cpu"
-        jobs = min(free, MAX_AUTO_JOBS) if many and on_cpu and len(items) >= JOBS_MIN_IMAGES else 1
+    chunk, heavy = VECTORIZE_CHUNK, True
+    if engine == "local" and len(items) > 1:
+        jobs, chunk, heavy = _jobs(jobs, items, options, free, runtime.gpu_likely(device))
     api.check_segments(model, k)  # before any file is read
     for note in notes:
         warn(note)
@@ -131,12 +130,35 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, toleranc
         with native_stderr_quiet():  # Ray's own processes' lines; ours still reach stderr
             run_batch(ctx, items, _on_ray(model_name, jobs, address, device, seed, options, write), chunk=len(items))
         return
-    jobs = min(jobs, -(-len(items) // VECTORIZE_CHUNK))  # a worker per chunk at most: each loads the model
-    if jobs > 1 and len(items) > 1:
+    if jobs and jobs > 1 and len(items) > 1:
         threads = runtime.intra_op_threads(len(items), jobs, free)
-        run_batch(ctx, items, _in_pool(model_name, jobs, threads, device, seed, options, write), chunk=len(items))
+        run_batch(ctx, items, _in_pool(model_name, jobs, threads, device, seed, options, write, chunk, heavy),
+                  chunk=len(items))
     else:
-        run_batch(ctx, items, _in_process(model, options, write, single=len(items) == 1), chunk=VECTORIZE_CHUNK)
+        run_batch(ctx, items, _in_process(model, options, write, single=len(items) == 1), chunk=chunk)
+
+
+def _jobs(jobs, items, options, free: int, gpu: bool) -> tuple[int, int, bool]:
+    """``parallel.plan``'s workers (``-j``, else as many as finish soonest by the sizes of up to
+    ``PLAN_SAMPLE`` pictures; 1 on a GPU), pictures a chunk, and whether any picture needs the model."""
+    from .. import parallel
+
+    sides = [_picture_size(item) for item, _ in items[:PLAN_SAMPLE]]
+    return parallel.plan(options, sides, len(items), most=min(free, MAX_AUTO_JOBS), jobs=jobs, gpu=gpu,
+                         chunk=VECTORIZE_CHUNK)
+
+
+def _picture_size(item: str) -> tuple[int, int] | None:
+    """A picture file's ``(W, H)`` from its header, or ``None`` (stdin, unreadable: found out later)."""
+    from PIL import Image
+
+    if item == "-":
+        return None
+    try:
+        with Image.open(item) as im:
+            return im.size
+    except Exception:  # noqa: BLE001 - the picture's own error is reported when it is read
+        return None
 
 
 # option -> (when it acts, given the parameters; when it does not, why): an option given on the
@@ -256,20 +278,21 @@ def _in_process(model, options, write, single: bool = False):
     return work
 
 
-def _in_pool(model_name, jobs, threads, device, seed, options, write):
-    """``vectorize``'s work on all inputs at once, in chunks over ``jobs`` worker processes of ``threads`` threads."""
+def _in_pool(model_name, jobs, threads, device, seed, options, write, size=VECTORIZE_CHUNK, heavy=True):
+    """``vectorize``'s work on all inputs at once, in chunks of ``size`` over ``jobs`` worker processes of
+    ``threads`` threads (``heavy``: some pictures need the model, imported before the workers fork)."""
     from .. import parallel
 
     def work(group):
         names, bad = collections.deque(), []
 
         def chunks():
-            for start in range(0, len(group), VECTORIZE_CHUNK):
-                good, failed = _load(group[start : start + VECTORIZE_CHUNK], options.max_input_pixels())
+            for start in range(0, len(group), size):
+                good, failed = _load(group[start : start + size], options.max_input_pixels())
                 bad.extend(failed)
                 if good:  # as (H, W, 3) arrays: tensors would travel through shared memory and a file
                     names.append([item for item, _ in good])  # descriptor server that Ctrl-C interrupts
-                    yield [img.permute(1, 2, 0).numpy() for _, img in good]
+                    yield [img for _, img in good]
 
         def died(event):
             how = f" (killed by {signal.Signals(event.signal).name})" if event.signal in signal.valid_signals() else ""
@@ -277,7 +300,7 @@ def _in_pool(model_name, jobs, threads, device, seed, options, write):
                  "a chunk at a time")
 
         for vecs in parallel.vectorize_chunks(chunks(), model_name, jobs=jobs, threads=threads, device=device,
-                                              seed=seed, options=options, on_event=died):
+                                              seed=seed, options=options, on_event=died, model=heavy):
             yield from bad
             bad.clear()
             for item, vec in zip(names.popleft(), vecs):

@@ -32,6 +32,22 @@ def set_threads_for(pictures: int) -> int:
     return free
 
 
+def lazy_model(name: str, device: str, seed: int):
+    """``load_model``'s model as an ``api.ModelRef``, loaded where a picture first needs it (one
+    traced and not polished does not: neither the model nor torch is loaded for it). Checked now:
+    the name, and that the model draws paths; Python, NumPy and (when it loads) torch seeded."""
+    from ..api import ModelRef
+    from ..config import ModelConfig, resolve_model
+    from ..errors import ModelError
+    from ..runtime import seed_everything
+
+    seed_everything(seed)
+    folder = resolve_model(name)
+    if (folder / "config.json").is_file() and ModelConfig.load(folder / "config.json").arch == "imagevae":
+        raise ModelError(f"{name} is an ImageVAE baseline: it draws pixels, not paths (only `im2vec eval` takes it)")
+    return ModelRef(name, device)  # torch_ready gives torch the seed when the model loads
+
+
 def load_model(name: str, device: str, seed: int, raster_ok: bool = False):
     """The model for a command, seeded; the ImageVAE baseline only where ``raster_ok``."""
     from ..errors import ModelError

@@ -29,14 +29,14 @@ def read_input(path: str, limit: int | None = None) -> bytes:
 
 
 def load_input_image(item: str, max_pixels: int | None = None):
-    """An image file (or ``-``: stdin) as ``(3, H, W)`` in [0, 1] over white (at most
-    ``max_pixels``, checked before decoding)."""
-    from ..files import MAX_PIXELS, load_image
+    """An image file (or ``-``: stdin) as ``(H, W, 3)`` float32 in [0, 1] over white (at most
+    ``max_pixels``, checked before decoding; ``files.load_picture``: no torch)."""
+    from ..files import MAX_PIXELS, load_picture
 
     most = MAX_PIXELS if max_pixels is None else max_pixels
     if item == "-":
-        return load_image("<stdin>", read_input("-"), most)
-    return load_image(item, max_pixels=most)
+        return load_picture("<stdin>", read_input("-"), most)
+    return load_picture(item, max_pixels=most)
 
 
 def write_stdout(raw: bytes) -> None:

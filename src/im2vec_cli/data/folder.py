@@ -10,12 +10,13 @@ import hashlib
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-
-import torch
+from typing import TYPE_CHECKING
 
 from ..errors import DataError, InputError
 from ..files import load_image
-from ..frame import fit_square
+
+if TYPE_CHECKING:  # torch is imported where a folder is loaded: `vectorize` lists folders without it
+    import torch
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 
@@ -49,6 +50,10 @@ def load_folder(
     Returns:
         ``(N, 3, size, size)`` uint8 and the relative file names.
     """
+    import torch
+
+    from ..frame import fit_square
+
     files = list_images(root, on_skip)
     if not files:
         raise DataError(f"{root}: no images (.png, .jpg) found")

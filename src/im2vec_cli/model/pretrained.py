@@ -1,6 +1,7 @@
 """Exported models: a folder with ``config.json`` (``ModelConfig``, sorted, with class name and
 format version) beside ``model.safetensors`` (huggingface/diffusers' ``save_pretrained`` /
 ``from_pretrained``), looked up by name or directory.
+(The lookup, ``config.resolve_model``, needs no torch.)
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ from pathlib import Path
 import torch
 
 from ..checkpoint import load_checkpoint
-from ..config import ModelConfig
+from ..config import DEFAULT_MODEL, ModelConfig, resolve_model
 from ..errors import ModelError
 from ..files import atomic_write, check_output_folder, replace_folder
 from ..options import GROWABLE
@@ -20,9 +21,6 @@ from .encoder import Feedback, PathPass
 from .points import PointPass
 from .prior import NEIGHBOURS_CONFIG, NEIGHBOURS_WEIGHTS, LatentPrior, NeighbourPrior
 
-REPO_MODELS = Path(__file__).resolve().parents[3] / "models"
-PACKAGE_MODELS = Path(__file__).resolve().parents[1] / "models"
-DEFAULT_MODEL = "fonts"
 STORED_FLOATS = (torch.float32, torch.float16, torch.bfloat16)  # how a float weight may be stored (``half``: fp16)
 
 
@@ -66,39 +64,6 @@ def save_priors(model: torch.nn.Module, directory: str | Path) -> None:
         path = directory / name
         if path.is_symlink() or path.is_file():  # the link or file only, never what a link points to
             path.unlink()
-
-
-def resolve_model(name_or_dir: str | os.PathLike) -> Path:
-    """A model folder, looked up in this order:
-
-    1. a path (it names a folder: ``runs/x/model``, ``./fonts``, ``/abs``): that folder;
-    2. a bare name (``fonts``): a folder of that name here only when it holds ``config.json``,
-       then ``$IM2VEC_MODELS/NAME``, the repository's ``models/NAME``, the package's
-       bundled ``models/NAME``; so a folder here that is not a model never hides a shipped one.
-    """
-    p = Path(name_or_dir)
-    name = str(name_or_dir)
-    bare = os.sep not in name and (os.altsep or os.sep) not in name and name not in (".", "..")
-    if p.is_dir() and (not bare or (p / "config.json").is_file()):
-        return p
-    candidates = []
-    if os.environ.get("IM2VEC_MODELS"):
-        env = Path(os.environ["IM2VEC_MODELS"])
-        if not env.is_dir():  # a typo here would silently fall back to the shipped models
-            raise ModelError(f"IM2VEC_MODELS={env} is not a folder")
-        candidates.append(env / name)
-    candidates += [REPO_MODELS / name, PACKAGE_MODELS / name]
-    for c in candidates:
-        if (c / "config.json").is_file():
-            return c
-    if p.is_dir():
-        return p  # not a model: its missing config.json is the error to show
-    known = sorted({d.name for base in (REPO_MODELS, PACKAGE_MODELS) if base.is_dir() for d in base.iterdir()
-                    if (d / "config.json").is_file()})
-    if not known:  # an install without its models (a wheel built without them, a copied package)
-        raise ModelError(f"unknown model {name!r}: no models are installed; give --model a model folder, or set "
-                         "IM2VEC_MODELS to a folder of them (a checkout's models/)")
-    raise ModelError(f"unknown model {name!r} (not a directory; shipped models: {', '.join(known)})")
 
 
 def from_pretrained(name_or_dir: str | os.PathLike = DEFAULT_MODEL, device: str | torch.device = "cpu"):

@@ -1,27 +1,39 @@
 """Differentiable soft rasterizer for closed cubic Bezier paths (see ``render.py``).
 
 This package imports nothing of im2vec's above it.
+
+Its names load on first use (``lazy.py``): ``curves`` needs NumPy alone, the rest torch.
 """
 
-from ._compile import compile_enabled, compiling, set_compile
-from .bezier import cubic_at, flatten_closed, line_controls, polygon_area, segment_controls, subdivide_to
-from .composite import composite_over, composite_soft, solve_colors, solve_order
-from .coverage import inside_from_winding
-from .pyramid import detail_weights, gaussian_pyramid, pyramid_l2, pyramid_sizes
-from .render import (
-    PYRAMID_COARSE,
-    Rasterizer,
-    RasterSettings,
-    render_coverage,
-    render_paths,
-    render_pyramid,
-    render_supersampled,
-)
-from .winding import winding_number
+from ..lazy import lazy_names
 
-__all__ = [
-    "PYRAMID_COARSE", "RasterSettings", "Rasterizer", "compile_enabled", "compiling", "composite_over", "composite_soft",
-    "cubic_at", "detail_weights", "flatten_closed", "gaussian_pyramid", "inside_from_winding", "line_controls",
-    "polygon_area", "pyramid_l2", "pyramid_sizes", "render_coverage", "render_paths", "render_pyramid", "render_supersampled",
-    "segment_controls", "set_compile", "solve_colors", "solve_order", "subdivide_to", "winding_number",
-]
+_WHERE = {
+    "PYRAMID_COARSE": "render",
+    "RasterSettings": "render",
+    "Rasterizer": "render",
+    "compile_enabled": "_compile",
+    "compiling": "_compile",
+    "composite_over": "composite",
+    "composite_soft": "composite",
+    "cubic_at": "curves",
+    "detail_weights": "pyramid",
+    "flatten_closed": "bezier",
+    "gaussian_pyramid": "pyramid",
+    "inside_from_winding": "coverage",
+    "line_controls": "curves",
+    "polygon_area": "bezier",
+    "pyramid_l2": "pyramid",
+    "pyramid_sizes": "pyramid",
+    "render_coverage": "render",
+    "render_paths": "render",
+    "render_pyramid": "render",
+    "render_supersampled": "render",
+    "segment_controls": "bezier",
+    "set_compile": "_compile",
+    "solve_colors": "composite",
+    "solve_order": "composite",
+    "subdivide_to": "bezier",
+    "winding_number": "winding",
+}
+__all__ = sorted(_WHERE)
+__getattr__, __dir__ = lazy_names(__name__, _WHERE)

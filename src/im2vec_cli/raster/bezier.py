@@ -11,31 +11,10 @@ import functools
 
 import torch
 
+from .curves import cubic_at, line_controls
 
-def line_controls(a, b):
-    """The two controls of a straight segment ``a -> b`` written as a cubic (at 1/3 and 2/3).
-
-    Works on anything with arithmetic: NumPy arrays, tensors, ``(..., 2)`` batches.
-    """
-    return a + (b - a) / 3, a + 2 * (b - a) / 3
-
-
-def cubic_at(ctrl, t):
-    """Points of cubic segments at parameters ``t``: the one cubic evaluation of the project.
-
-    Works on NumPy arrays and tensors alike.
-
-    Args:
-        ctrl: ``(..., 4, 2)`` control points ``[p0, p1, p2, p3]``.
-        t: ``(N,)`` parameters in [0, 1].
-
-    Returns:
-        ``(..., N, 2)``.
-    """
-    t = t[:, None]  # (N, 1)
-    u = 1 - t
-    c = ctrl[..., None, :, :]  # (..., 1, 4, 2)
-    return u**3 * c[..., 0, :] + 3 * u * u * t * c[..., 1, :] + 3 * u * t * t * c[..., 2, :] + t**3 * c[..., 3, :]
+__all__ = ["bernstein_weights", "cubic_at", "flatten_closed", "line_controls", "polygon_area", "restrict",
+           "segment_controls", "split_segment", "subdivide_to"]
 
 
 def bernstein_weights(samples: int, *, dtype: torch.dtype, device: torch.device) -> torch.Tensor:

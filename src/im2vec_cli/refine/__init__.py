@@ -13,12 +13,20 @@ Frames: the model decodes in its square frame (``frame.Placement``). Refinement 
 the *input's* normalised frame, ``(x / W, y / H)`` of the input's pixel grid, and renders at
 the input's resolution (inputs larger than ``max_side`` are fitted at a reduced copy), so
 ``tau`` is measured in input pixels.
+
+Its names load on first use (``lazy.py``): ``settings`` (``EFFORTS``) needs no torch.
 """
 
+from ..lazy import lazy_names
 from ..options import PARTS
-from .batch import REFINE_BATCH, refine, refine_batch
-from .settings import EFFORTS, RefineSettings
-from .stages import Refinement
 
-__all__ = ["EFFORTS", "PARTS", "REFINE_BATCH", "RefineSettings", "Refinement", "refine",
-           "refine_batch"]
+_WHERE = {
+    "EFFORTS": "settings",
+    "REFINE_BATCH": "batch",
+    "RefineSettings": "settings",
+    "Refinement": "stages",
+    "refine": "batch",
+    "refine_batch": "batch",
+}
+__all__ = ["PARTS", *sorted(_WHERE)]
+__getattr__, __dir__ = lazy_names(__name__, _WHERE)

@@ -10,10 +10,10 @@ import numpy as np
 import torch
 
 from ..events import Event, Stage
-from ..infer import flat_result
 from ..model.vae import Im2Vec
 from ..options import MAX_WORK_PIXELS, PARTS
-from ..trace import Reading, clean_outlines, read, simplify
+from ..trace import Reading, clean_outlines, flat_result, read_pictures, simplify
+from ..trace.batch import FLAT_SUMMARY, workable
 from ..vector import VectorImage
 from .settings import RefineSettings
 from .stages import Refinement
@@ -87,14 +87,13 @@ def refine_batch(
     With ``parts="clean"`` each picture is first read (``trace.read``, ``preset``, ``speckle``) and
     its clean picture traced; the summary's ``kind`` and ``reading`` say what it was read as."""
     sizes = _sizes(images, parts)
-    images = [_workable(im, max_work_pixels) for im in images]
-    images, readings = _read(images, preset, speckle, on_step) if parts == "clean" else (images, None)
+    images, readings = _read(images, parts, preset, speckle, max_work_pixels, on_step)
     out: list = [None] * len(images)
     by_size: dict[tuple[int, int], list[int]] = {}
     for i, im in enumerate(images):
-        flat = flat_result(im)
+        flat = flat_result(_array(im))
         if flat is not None:  # nothing to fit: the same answer as amortised vectorisation
-            out[i] = (flat, {"loss_start": 0.0, "loss_end": 0.0, "latent_steps": 0, "point_steps": 0})
+            out[i] = (flat, dict(FLAT_SUMMARY))
         else:
             by_size.setdefault(tuple(im.shape[1:]), []).append(i)
     req = [p.requires_grad for p in model.parameters()]
@@ -110,7 +109,8 @@ def refine_batch(
                     if parts == "model":
                         got = _model_paths(run, list(range(len(ids))), **kw)
                     else:
-                        got = clean_outlines(run.images, run, settings.outline_settings(), colors=colors,
+                        got = clean_outlines([_array(im) for im in run.images], run, settings.outline_settings(),
+                                             colors=colors,
                                              max_paths=max_paths, readings=[readings[i] for i in ids], on_stage=on_step,
                                              model_paths=functools.partial(_model_paths, run, **kw, outline=True))
                     for i, r in zip(ids, got):
@@ -132,27 +132,28 @@ def _sizes(images: list[torch.Tensor], parts: str) -> list[tuple[int, int]]:
     return [tuple(im.shape[1:]) for im in images]
 
 
-def _read(images: list[torch.Tensor], preset: str | None, speckle: int | None, on_step=None
-          ) -> tuple[list[torch.Tensor], list[Reading]]:
-    """Each picture read (``trace.read``) and its clean picture, ``(3, H', W')`` on its device;
-    ``on_step`` hears ``Stage("read")``."""
-    readings = [read(im.permute(1, 2, 0).double().cpu().numpy(), preset, speckle) for im in images]
+def _read(images: list[torch.Tensor], parts: str, preset: str | None, speckle: int | None, most: int, on_step=None
+          ) -> tuple[list[torch.Tensor], list[Reading] | None]:
+    """With ``parts="clean"`` each picture read (``trace.read_pictures``: at
+    most ``most`` pixels) and its clean picture, ``(3, H', W')`` on its device; ``on_step``
+    hears ``Stage("read")``. Else each picture at most ``most`` pixels, and no readings."""
+    if parts != "clean":
+        return [_tensor(workable(_array(im), most), im) if im.shape[1] * im.shape[2] > most else im
+                for im in images], None
+    readings = read_pictures([_array(im) for im in images], preset, speckle, most)
     if on_step:
         on_step(Stage("read"))
-    pictures = [torch.from_numpy(np.ascontiguousarray(r.picture.transpose(2, 0, 1))).to(im)
-                for r, im in zip(readings, images)]
-    return pictures, readings
+    return [_tensor(r.picture, im) for r, im in zip(readings, images)], readings
 
 
-def _workable(image: torch.Tensor, most: int) -> torch.Tensor:
-    """``image (3, H, W)``, or its area-averaged copy of at most ``most`` pixels: tracing costs
-    memory and time by the pixel (a 64 MP picture: 7.5 GB)."""
-    _, h, w = image.shape
-    if h * w <= most:
-        return image
-    f = (most / (h * w)) ** 0.5
-    size = (max(4, int(h * f)), max(4, int(w * f)))
-    return torch.nn.functional.interpolate(image[None].float(), size=size, mode="area")[0]
+def _array(image: torch.Tensor) -> np.ndarray:
+    """``(3, H, W)`` -> ``(H, W, 3)`` float64 on the CPU."""
+    return image.detach().permute(1, 2, 0).double().cpu().numpy()
+
+
+def _tensor(picture: np.ndarray, like: torch.Tensor) -> torch.Tensor:
+    """``picture (H, W, 3)`` -> ``(3, H, W)`` of ``like``'s dtype and device."""
+    return torch.from_numpy(np.ascontiguousarray(picture.transpose(2, 0, 1))).to(like)
 
 
 def _model_paths(run: Refinement, index: list[int], segments, quality, max_paths, outline: bool = False

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..raster.bezier import cubic_at, line_controls
+from ..raster.curves import cubic_at, line_controls
 
 Corners = list[list[np.ndarray]]  # per shape, per contour: (S,) bool, true where anchor i is sharp
 
@@ -213,21 +213,20 @@ def fit_runs(runs: list[tuple[np.ndarray, np.ndarray, np.ndarray]], tol: float) 
 
 
 FIT_BLOCK = 1 << 21  # points in one ``fit_cubics`` batch (pieces x the longest piece): bounded memory
+FIT_SPREAD = 2  # pieces fitted in one batch are at most this many times longer than its shortest: padded to
+# the longest, a batch of all of a picture's pieces held 21-37 times its points (Adwaita icons, scikit-image's logo)
 
 
 def _blocks(fit: list[tuple]) -> list[list[tuple]]:
-    """The pieces to fit (``(run, key, pts, t0, t1, depth)``) in batches of at most ``FIT_BLOCK``
-    padded points: all at once when they fit, else by length."""
-    if not fit or len(fit) * max(len(f[2]) for f in fit) <= FIT_BLOCK:
-        return [fit] if fit else []
-    fit = sorted(fit, key=lambda f: len(f[2]))
+    """The pieces to fit (``(run, key, pts, t0, t1, depth)``) in batches by length: each of pieces
+    within ``FIT_SPREAD`` times of each other's length and at most ``FIT_BLOCK`` padded points."""
     out, cur = [], []
-    for f in fit:
-        if cur and (len(cur) + 1) * len(f[2]) > FIT_BLOCK:
+    for f in sorted(fit, key=lambda f: len(f[2])):
+        if cur and (len(f[2]) > FIT_SPREAD * len(cur[0][2]) or (len(cur) + 1) * len(f[2]) > FIT_BLOCK):
             out.append(cur)
             cur = []
         cur.append(f)
-    return out + [cur]
+    return out + [cur] if cur else out
 
 
 def _fit_block(fit: list[tuple]) -> tuple[np.ndarray, np.ndarray]:

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..raster.bezier import line_controls
+from ..raster.curves import line_controls
 from ..vector import VectorImage, VectorShape, fill_vector
 from .fit import Corners, fit_rings
 from .regions import background_color, level_polygons, trace, two_tone

@@ -158,11 +158,12 @@ def _assign(image: np.ndarray, palette: np.ndarray, flat: np.ndarray) -> np.ndar
     near[~near.any(-1)] = True
     labels = np.argmin(dist, -1)
     todo = ~flat if h * w > MIXES_ON_EDGES else np.ones((h, w), dtype=bool)  # a large picture's flat pixels: their
-    pixels, near = image[todo], near[todo]  # nearest colour (the mixes of every pair cost 10 s at 2048 px)
-    best = np.full(len(pixels), np.inf)
-    got = np.zeros(len(pixels), dtype=np.int64)
-    for i, j, t, r in _mixes(pixels, palette):
-        r = r + 1e-6 * (i != j)  # ties: one colour
+    colours, back = _distinct(image[todo])  # nearest colour (the mixes of every pair cost 10 s at 2048 px)
+    near = near[todo]
+    best = np.full(len(back), np.inf)
+    got = np.zeros(len(back), dtype=np.int64)
+    for i, j, t, r in _mixes(colours, palette):
+        t, r = t[back], r[back] + 1e-6 * (i != j)  # ties: one colour
         r[~(near[:, i] & near[:, j])] = np.inf
         better = r < best
         best[better] = r[better]
@@ -181,17 +182,31 @@ def _mixes(pixels: np.ndarray, palette: np.ndarray):
             yield i, j, t, np.linalg.norm(pixels - a - t[..., None] * d, axis=-1)
 
 
-def _mix_distance(pixels: np.ndarray, palette: np.ndarray) -> np.ndarray:
-    """``(N,)`` distance of each pixel to the nearest mix of two palette colours (an edge pixel)."""
-    return np.min([r for _, _, _, r in _mixes(pixels, palette)], axis=0)
+def _distinct(pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct colours ``(M, 3)`` of ``pixels (N, 3)`` and each pixel's ``(N,)`` index among
+    them: what depends on a pixel's colour alone is worked out once a colour (a logo's 65,536
+    sampled pixels hold a few thousand)."""
+    order = np.lexsort(pixels.T[::-1])  # rows in lexicographic order (np.unique(axis=0)'s, 6x faster)
+    ranked = pixels[order]
+    new = np.ones(len(ranked), dtype=bool)
+    new[1:] = (ranked[1:] != ranked[:-1]).any(1)
+    back = np.empty(len(ranked), dtype=np.int64)
+    back[order] = np.cumsum(new) - 1
+    return ranked[new], back
+
+
+def _mix_distance(colours: np.ndarray, palette: np.ndarray) -> np.ndarray:
+    """``(M,)`` distance of each colour to the nearest mix of two palette colours (an edge pixel's)."""
+    return np.min([r for _, _, _, r in _mixes(colours, palette)], axis=0)
 
 
 def _thin_colors(pixels: np.ndarray, palette: np.ndarray, max_colors: int, tol: float = 0.12) -> np.ndarray:
     """Add the colours of thin features (lines, dots: no flat pixel of their own) to ``palette``:
     while more than 0.2% of the pixels are no mix of two palette colours, the farthest tenth
     of them gives one more colour."""
+    colours, back = _distinct(pixels)
     for _ in range(max_colors - len(palette)):
-        off = _mix_distance(pixels, palette)
+        off = _mix_distance(colours, palette)[back]
         odd = off > tol
         if odd.sum() < max(3, 0.002 * len(pixels)):
             break

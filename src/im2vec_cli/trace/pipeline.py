@@ -13,8 +13,8 @@ pipeline: segment -> fit -> composite -> optimise -> write):
    (``split_where_wrong``) and polished again, kept where nearer;
 6. ``finish``: crossings ``untangle``-d, written nonzero.
 
-Frame: the pixel frame of each picture; pictures are ``(3, H, W)`` tensors in [0, 1] (one
-size per batch) and ``(H, W, 3)`` float64 arrays inside.
+Frame: the pixel frame of each picture; pictures are ``(H, W, 3)`` float64 arrays in [0, 1]. A
+batch none of whose pictures is polished needs no renderer (``polisher`` None) and no torch.
 """
 
 from __future__ import annotations
@@ -24,10 +24,9 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
-import torch
 
 from ..events import Stage
-from ..raster import flatten_closed
+from ..raster.curves import flatten_ring
 from ..vector import VectorImage, VectorShape, fill_vector
 from .fit import Corners, split_segments
 from .outline import redrawn, traced
@@ -92,25 +91,25 @@ class Start:
         return with_rule(vec, "evenodd"), flags, exact
 
 
-def clean_outlines(images: list[torch.Tensor], polisher: Polisher, s: OutlineSettings = OutlineSettings(), *,
+def clean_outlines(pictures: list[np.ndarray], polisher: Polisher | None, s: OutlineSettings = OutlineSettings(), *,
                    colors: int | None = None, max_paths: int | None = None, model_paths: ModelPaths | None = None,
                    readings: list[Reading] | None = None, on_stage: Callable[[Stage], None] | None = None
                    ) -> list[tuple[VectorImage, dict]]:
-    """Clean outlines of ``images`` (each ``(3, H, W)`` in [0, 1]): non-overlapping outer
+    """Clean outlines of ``pictures`` (each ``(H, W, 3)`` in [0, 1]): non-overlapping outer
     contours and holes, nonzero, fitted within ``s.tolerance`` px and polished against the
     picture. ``model_paths`` gives the model's paths of pictures (the second start).
     ``readings``: what each picture is (``read.read``: ``images`` are their clean pictures); its
     kind shapes the trace (pixel art along its pixel edges), the palette of a photo and
-    whether the outline is polished. ``on_stage`` hears each stage done (``events.STAGES``).
+    whether the outline is polished (``polished``); ``polisher`` may be None where none is. ``on_stage`` hears each stage done (``events.STAGES``).
 
     Returns per picture the vector image and a summary: ``loss_end`` (the polisher's loss),
     ``start`` (which start was kept), ``segments``, and the model stage's figures where it ran.
     """
-    pictures = [im.permute(1, 2, 0).double().cpu().numpy() for im in images]  # (H, W, 3)
     readings = readings or [Reading("", pic) for pic in pictures]
     each = [r.colors if colors is None else colors for r in readings]
-    polish_these = [s.polish and r.polish and max(pic.shape[:2]) <= s.polish_side
-                    for r, pic in zip(readings, pictures)]
+    polish_these = [polished(r, pic.shape, s) for r, pic in zip(readings, pictures)]
+    if polisher is None and any(polish_these):
+        raise ValueError("a picture to polish needs a polisher")
     starts, info = _starts(pictures, s, each, readings, polish_these, max_paths, model_paths)
     chosen = choose(starts, polisher)
     made = [start.outline(s.tolerance * r.loose) for start, r in zip(chosen, readings)]
@@ -127,6 +126,13 @@ def clean_outlines(images: list[torch.Tensor], polisher: Polisher, s: OutlineSet
            for i in range(len(vecs))]
     tell(Stage("finished"))
     return out
+
+
+def polished(reading: Reading, shape: tuple[int, ...], s: OutlineSettings) -> bool:
+    """Whether the picture of ``shape (H, W, ...)`` read as ``reading`` is polished through the
+    renderer (the only stage that needs torch): not at ``--effort draft``, nor pixel art or a
+    photo (``Reading.polish``), nor a picture of a longer side than ``s.polish_side``."""
+    return s.polish and reading.polish and max(shape[:2]) <= s.polish_side
 
 
 def _starts(pictures: list[np.ndarray], s: OutlineSettings, colors: list[int | None], readings: list[Reading],
@@ -214,7 +220,7 @@ def split_where_wrong(vec: VectorImage, flags: Corners, picture: np.ndarray, s: 
     for sh, fl in zip(vec.shapes, flags):
         cs, fs = [], []
         for c, f in zip(sh.contours, fl):
-            pts = flatten_closed(torch.from_numpy(np.asarray(c, dtype=np.float64)), 8).numpy().reshape(-1, 8, 2)
+            pts = flatten_ring(c, 8).reshape(-1, 8, 2)
             ix = np.clip(pts[..., 0].astype(int), 0, w - 1)
             iy = np.clip(pts[..., 1].astype(int), 0, h - 1)
             bad = np.nonzero(err[iy, ix].mean(1) > limit)[0]

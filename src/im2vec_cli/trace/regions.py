@@ -28,10 +28,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import torch
 
 from ..errors import TraceError
-from ..raster.bezier import polygon_area
+from ..raster.curves import ring_area
 from .palette import FLAT_BY_LEVELS, PHOTO_COLORS, _flat_pixels, hard_palette, posterize, quantize
 
 MAX_REGIONS = 10_000  # regions (or rings of a two-tone picture) traced at most: a few ms each...
@@ -73,7 +72,7 @@ def level_polygons(field: np.ndarray, level: float = 0.5, min_area: float = 0.5,
     for poly, offsets in zip(polys, offsets_all):
         for a, b in zip(offsets[:-1], offsets[1:]):
             ring = np.clip(poly[a : b - 1], 0, [w, h])  # the last point repeats the first
-            if len(ring) >= 3 and abs(float(polygon_area(torch.from_numpy(ring)))) >= min_area:
+            if len(ring) >= 3 and abs(float(ring_area(ring))) >= min_area:
                 rings.append(ring)
     return rings
 
@@ -87,13 +86,20 @@ def background_color(image: np.ndarray) -> np.ndarray:
     return near.mean(0)
 
 
-def _ink_line(image: np.ndarray, bg: np.ndarray, extreme: float) -> tuple[np.ndarray, np.ndarray]:
-    """The ink (mean of the pixels at least ``extreme`` of the farthest from ``bg``) and each
-    pixel's position ``t (H, W)`` along the background-ink line (0: background, 1: ink; unclipped)."""
-    d = np.linalg.norm(image - bg, axis=-1)  # (H, W)
+def _ink_line(image: np.ndarray, bg: np.ndarray, extreme: float, d: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """The ink (mean of the pixels at least ``extreme`` of the farthest from ``bg``; ``d (H, W)``:
+    each pixel's distance from ``bg``, where known) and each pixel's position ``t (H, W)`` along
+    the background-ink line (0: background, 1: ink; unclipped)."""
+    d = np.linalg.norm(image - bg, axis=-1) if d is None else d  # (H, W)
     ink = image[d >= extreme * max(d.max(), 1e-6)].mean(0)
     axis = ink - bg
     return ink, ((image - bg) @ axis) / max(float(axis @ axis), 1e-12)
+
+
+def _off_line(image: np.ndarray, bg: np.ndarray, ink: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Each pixel's distance from its point on the background-ink line."""
+    return np.linalg.norm(image - (bg + t[..., None] * (ink - bg)), axis=-1)
 
 
 def two_tone(image: np.ndarray, bg: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
@@ -101,10 +107,14 @@ def two_tone(image: np.ndarray, bg: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     (A picture of more than ``FLAT_BY_LEVELS`` pixels is tested in float32: half the memory.)"""
     if image.shape[0] * image.shape[1] > FLAT_BY_LEVELS:
         image, bg = image.astype(np.float32), bg.astype(np.float32)
-    if np.linalg.norm(image - bg, axis=-1).max() < 0.1:
+    d = np.linalg.norm(image - bg, axis=-1)
+    if d.max() < 0.1:
         return None
-    ink, t = _ink_line(image, bg, 0.9)
-    off = np.linalg.norm(image - (bg + t[..., None] * (ink - bg)), axis=-1)  # off the background-ink line
+    ink, t = _ink_line(image, bg, 0.9, d)
+    limit = TWO_TONE_SHARE * t.size  # more pixels off the line than this: not two-tone. A colour picture
+    if (_off_line(image[::4], bg, ink, t[::4]) > TWO_TONE_TOL).sum() > limit:  # shows it in a quarter of its rows
+        return None
+    off = _off_line(image, bg, ink, t)  # off the background-ink line
     alpha = np.clip(t, 0, 1).astype(np.float64)
     if (off > TWO_TONE_TOL).mean() > TWO_TONE_SHARE:
         return None
@@ -232,7 +242,7 @@ def pixel_polygons(mask: np.ndarray) -> list[np.ndarray]:
         ring = ring[turn != 0]  # points along a straight side are not corners
         if len(ring) >= 3:
             rings.append(ring)
-    if rings and float(polygon_area(torch.from_numpy(max(rings, key=lambda r: np.ptp(r, 0).prod())))) < 0:
+    if rings and float(ring_area(max(rings, key=lambda r: np.ptp(r, 0).prod()))) < 0:
         rings = [r[::-1].copy() for r in rings]  # outer boundaries clockwise on screen
     return rings
 

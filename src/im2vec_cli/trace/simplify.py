@@ -14,9 +14,8 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-import torch
 
-from ..raster.bezier import cubic_at, segment_controls
+from ..raster.curves import cubic_at, segments_of
 from ..vector import VectorImage
 from .fit import fit_cubic
 
@@ -30,7 +29,7 @@ def _bezier(ctrl: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 def _segments(points: np.ndarray) -> np.ndarray:
     """``(3S, 2)`` -> ``(S, 4, 2)``."""
-    return segment_controls(torch.from_numpy(points)).numpy()
+    return segments_of(points)
 
 
 def _tangent(ctrl: np.ndarray, at_start: bool) -> np.ndarray | None:

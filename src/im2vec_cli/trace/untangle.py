@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..raster.curves import flatten_ring
 from ..vector import VectorImage, VectorShape, skia
 from .simplify import simplify_contour
 
@@ -56,11 +57,7 @@ CROSS_BLOCK = 64  # edges tested at once by ``crosses``, against the edges in th
 def crosses(contours: list[np.ndarray], samples: int = 16) -> bool:
     """Whether closed cubic contours ``(3S, 2)`` cross themselves or each other (their
     polylines at ``samples`` lines per cubic; touching end to end is not crossing)."""
-    import torch
-
-    from ..raster import flatten_closed
-
-    polys = [flatten_closed(torch.as_tensor(np.asarray(c, dtype=np.float64)), samples).numpy() for c in contours]
+    polys = [flatten_ring(c, samples) for c in contours]
     a = np.concatenate(polys)
     b = np.concatenate([np.roll(p, -1, 0) for p in polys])
     owner = np.concatenate([np.full(len(p), i) for i, p in enumerate(polys)])

@@ -1,17 +1,29 @@
 """Vector images: the ``VectorImage`` types, the tensor bridge (and our rasterizer on a
 ``VectorImage``), SVG read/write (static and animated), cairo rasterisation, the Skia
 path-ops bridge and overlap resolution. Tracing, curve fitting and outline clean-up live in
-``trace/``."""
+``trace/``.
 
-from .cairo import contact_sheet, fill_vector, rasterize_svg
-from .image import VectorImage, VectorShape
-from .overlaps import resolve_overlaps, reverse_contour
-from .read import from_svg, parse_d
-from .svg import contour_d, flipbook_svg, to_svg
-from .tensors import from_tensors, render_vector, to_tensors
+Its names load on first use (``lazy.py``): only ``overlaps`` and ``tensors`` need torch.
+"""
 
-__all__ = [
-    "VectorImage", "VectorShape", "contact_sheet", "contour_d", "fill_vector", "flipbook_svg", "from_svg",
-    "from_tensors", "parse_d", "rasterize_svg", "render_vector", "resolve_overlaps", "reverse_contour", "to_svg",
-    "to_tensors",
-]
+from ..lazy import lazy_names
+
+_WHERE = {
+    "VectorImage": "image",
+    "VectorShape": "image",
+    "contact_sheet": "cairo",
+    "contour_d": "svg",
+    "fill_vector": "cairo",
+    "flipbook_svg": "svg",
+    "from_svg": "read",
+    "from_tensors": "tensors",
+    "parse_d": "read",
+    "rasterize_svg": "cairo",
+    "render_vector": "tensors",
+    "resolve_overlaps": "overlaps",
+    "reverse_contour": "overlaps",
+    "to_svg": "svg",
+    "to_tensors": "tensors",
+}
+__all__ = sorted(_WHERE)
+__getattr__, __dir__ = lazy_names(__name__, _WHERE)

@@ -25,7 +25,7 @@ import re
 import numpy as np
 
 from ..errors import InputError
-from ..raster.bezier import line_controls
+from ..raster.curves import line_controls
 from . import skia
 from .document import MAX_SEGMENTS, check_document
 from .image import VectorImage, VectorShape

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..raster.bezier import line_controls
+from ..raster.curves import line_controls
 
 
 def to_path(chains: list[tuple[np.ndarray, bool]], fill_rule: str = "nonzero"):

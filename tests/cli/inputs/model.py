@@ -37,6 +37,15 @@ def in_model_truncated_weights(d, m):
     return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--model", str(dst)], None
 
 
+def _needing_model(path) -> str:
+    """A picture that needs the model (a 32 px glyph: polished through the renderer): a model's
+    weights are read when a picture needs them (a picture traced alone never loads it)."""
+    from tests.cli.bad_input import glyph_like
+
+    glyph_like(32).save(path)
+    return str(path)
+
+
 def in_model_nan_weights(d, m):
     from safetensors.torch import load_file, save_file
 
@@ -45,7 +54,7 @@ def in_model_nan_weights(d, m):
     key = sorted(k for k, v in state.items() if v.is_floating_point())[0]
     state[key] = state[key].clone().fill_(float("nan"))
     save_file(state, str(dst / "model.safetensors"))
-    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--model", str(dst)], None
+    return ["vectorize", _needing_model(d / "a.png"), "-o", str(d / "out.svg"), "--model", str(dst)], None
 
 
 def in_model_config_wrong_version(d, m):
@@ -67,7 +76,7 @@ def in_model_config_mismatch(d, m):
     cfg = json.loads((dst / "config.json").read_text())
     cfg["latent"] = TINY.latent * 2  # the weights were trained with another latent size
     (dst / "config.json").write_text(json.dumps(cfg))
-    return ["vectorize", png(d / "a.png"), "-o", str(d / "out.svg"), "--model", str(dst)], None
+    return ["vectorize", _needing_model(d / "a.png"), "-o", str(d / "out.svg"), "--model", str(dst)], None
 
 
 def in_unknown_device(d, m):

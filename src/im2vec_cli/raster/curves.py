@@ -1,0 +1,73 @@
+"""Cubic Bezier geometry on NumPy arrays, without torch: what tracing, fitting and the SVG
+bridge need, so that a picture traced and not polished never imports torch (``bezier.py`` holds
+the tensor versions the renderer differentiates through).
+
+Layout (shared/STYLE.md): ``points (..., 3S, 2)`` holds S cubic segments in diffvg's
+wrap-around order ``anchor, control, control, anchor, ...`` (``bezier.py``).
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+
+def line_controls(a, b):
+    """The two controls of a straight segment ``a -> b`` written as a cubic (at 1/3 and 2/3).
+
+    Works on anything with arithmetic: NumPy arrays, tensors, ``(..., 2)`` batches.
+    """
+    return a + (b - a) / 3, a + 2 * (b - a) / 3
+
+
+def cubic_at(ctrl, t):
+    """Points of cubic segments at parameters ``t``: the one cubic evaluation of the project.
+
+    Works on NumPy arrays and tensors alike.
+
+    Args:
+        ctrl: ``(..., 4, 2)`` control points ``[p0, p1, p2, p3]``.
+        t: ``(N,)`` parameters in [0, 1].
+
+    Returns:
+        ``(..., N, 2)``.
+    """
+    t = t[:, None]  # (N, 1)
+    u = 1 - t
+    c = ctrl[..., None, :, :]  # (..., 1, 4, 2)
+    return u**3 * c[..., 0, :] + 3 * u * u * t * c[..., 1, :] + 3 * u * t * t * c[..., 2, :] + t**3 * c[..., 3, :]
+
+
+def segments_of(points: np.ndarray) -> np.ndarray:
+    """``points (..., 3S, 2)`` -> ``(..., S, 4, 2)``: ``[p0, p1, p2, p3]`` of each segment."""
+    points = np.asarray(points)
+    if points.shape[-1] != 2 or points.shape[-2] % 3 != 0 or points.shape[-2] == 0:
+        raise ValueError(f"points must be (..., 3S, 2) with S >= 1, got {points.shape}")
+    seg = points.reshape(*points.shape[:-2], points.shape[-2] // 3, 3, 2)
+    nxt = np.roll(seg[..., 0, :], -1, axis=-2)  # (..., S, 2): the next anchor
+    return np.concatenate([seg, nxt[..., None, :]], axis=-2)
+
+
+@functools.lru_cache(maxsize=16)
+def _weights(samples: int) -> np.ndarray:
+    """Cubic Bernstein weights ``(samples, 4)`` at ``t = i / samples`` (shared: do not modify)."""
+    w = cubic_at(np.eye(4)[..., None].repeat(2, -1), np.arange(samples, dtype=np.float64) / samples)[..., 0].T
+    w.setflags(write=False)
+    return w
+
+
+def flatten_ring(points: np.ndarray, samples: int) -> np.ndarray:
+    """A closed cubic path ``(..., 3S, 2)`` sampled ``samples`` times a segment: the vertices
+    ``(..., S * samples, 2)`` of its closed polyline (``bezier.flatten_closed`` on arrays)."""
+    if samples < 1:
+        raise ValueError(f"samples must be >= 1, got {samples}")
+    ctrl = segments_of(np.asarray(points, dtype=np.float64))  # (..., S, 4, 2)
+    verts = np.einsum("lk,...skc->...slc", _weights(samples), ctrl)  # (..., S, L, 2)
+    return verts.reshape(*verts.shape[:-3], -1, 2)
+
+
+def ring_area(verts: np.ndarray) -> np.ndarray:
+    """Signed shoelace area of closed polylines ``(..., V, 2)`` -> ``(...)``."""
+    x, y = verts[..., 0], verts[..., 1]
+    return 0.5 * (x * np.roll(y, -1, -1) - np.roll(x, -1, -1) * y).sum(-1)

@@ -1,0 +1,181 @@
+"""``vectorize``: pictures in, closed cubic paths out, and the model it may need, loaded at its
+first use (``ModelRef``).
+
+Stages: each picture as an array (``files.as_picture``) -> with clean parts, read
+(``trace.read_pictures``) -> the pictures that are not polished (larger than the polish's size,
+pixel art, photos, ``effort="draft"``) traced without the renderer (``trace.trace_alone``: NumPy,
+no torch, no model) and the others refined through it (``refine.refine_batch``) -> each result
+with its notes. ``--parts model`` and ``--no-refine`` always use the model. Re-exported by
+``api.py``; nothing here prints or exits.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+
+import numpy as np
+
+from . import trace
+from .config import DEFAULT_MODEL, check_model_folder, resolve_model
+from .errors import ModelError, VectorizeError, describe
+from .events import Event, Stage
+from .files import as_picture, to_tensor
+from .options import VectorizeOptions
+from .refine.settings import EFFORTS
+from .runtime import check_device
+from .vector import VectorImage
+
+
+def load_model(name_or_dir: str = DEFAULT_MODEL, device="auto"):
+    """A shipped model by name (``fonts``, ``mnist``, ``emoji``, ``icons``) or a model folder written by
+    ``im2vec train`` / ``export``, on ``device`` (a ``torch.device`` or ``auto``: CUDA, then MPS, then CPU)."""
+    from .model.pretrained import from_pretrained
+    from .runtime import resolve_device
+
+    return from_pretrained(name_or_dir, resolve_device(device) if isinstance(device, str) else device)
+
+
+class ModelRef:
+    """A model loaded at its first use, once (``load()`` gives it): ``vectorize`` of pictures that are
+    traced and not polished never loads it, nor imports torch. ``ModelRef("fonts")`` checks the name
+    and the folder at once (``config.check_model_folder``: all but the weights' values) and the device's
+    name (``runtime.check_device``), and loads it with ``load_model`` on ``device``; any other
+    ``load`` callable may stand in."""
+
+    def __init__(self, name_or_dir: str = DEFAULT_MODEL, device="auto", load=None):
+        if load is None:  # an unknown or broken model is an error now, not at the first picture that needs it
+            check_model_folder(resolve_model(name_or_dir))
+            check_device(device)
+        self._load = load or (lambda: load_model(name_or_dir, device))
+        self._model = None
+
+    def load(self):
+        if self._model is None:
+            from .runtime import collector_paused
+
+            with collector_paused():  # torch's import and the model: 0.2-0.3 s less
+                self._model = self._load()
+                from . import infer, refine  # noqa: F401 - what uses the model, imported with it
+        return self._model
+
+
+def model_of(model):
+    """A model given as itself, a ``ModelRef`` or a name -> the model."""
+    return model.load() if isinstance(model, ModelRef) else load_model(model) if isinstance(model, str) else model
+
+
+def vectorize(images, model=DEFAULT_MODEL, options: VectorizeOptions | None = None, *,
+              on_event: Callable[[Event], None] | None = None, **fields) -> VectorImage | list[VectorImage]:
+    """Vectorize one picture (or a list of them) into closed cubic paths.
+
+    Args:
+        images: a picture, or a list of pictures (any size each).
+        model: a model from ``load_model``, a ``ModelRef``, or its name (loaded only where a
+            picture needs it: one traced and not polished does not).
+        options: a ``VectorizeOptions`` (default: its defaults; its docstring describes each
+            field); ``fields`` override any of them by name (``vectorize(img, m, parts="model")``).
+        on_event: hears the progress of refinement: ``events.Stage`` (read, traced, polished,
+            finished) and ``events.RefineStep``.
+
+    Returns:
+        One ``VectorImage`` per picture (a list for a list), in each picture's pixel frame.
+    """
+    o = dataclasses.replace(options or VectorizeOptions(), **fields)  # validated here, once
+    model = ModelRef(model) if isinstance(model, str) else model
+    one = not isinstance(images, (list, tuple))
+    pictures = [as_picture(x) for x in ([images] if one else images)]
+    check_segments(model, o.segments)
+    if o.refine:
+        out = _refined(model, pictures, o, on_event)
+    else:
+        model = model_of(model)  # (torch's import with it)
+        from . import infer
+        from .raster import compiling
+
+        kw = {"segments": o.segments, "quality": o.quality, "max_paths": o.max_paths, "clean": o.parts == "clean"}
+        with compiling(o.compile):  # compiling the passes cost 6-16 s a process for 0.15 s of work
+            out = infer.vectorize(model, [to_tensor(p) for p in pictures], **kw)
+            out = [trace.simplify(v, o.simplify_px or 0.0) for v in out]
+    return out[0] if one else out
+
+
+def _refined(model, pictures: list[np.ndarray], o: VectorizeOptions, on_event=None) -> list[VectorImage]:
+    """``vectorize`` with refinement: each result with its ``notes`` (``_notes``). With clean parts
+    the pictures are read first; those that are not polished are traced here without the renderer
+    (``trace.trace_alone``), the others refined (``refine.refine_batch``, which reads them again: they
+    are at most the polish's size)."""
+    settings = EFFORTS[o.effort]
+    if o.simplify_px is not None:
+        settings = dataclasses.replace(settings, simplify_tol=o.simplify_px)
+    if o.tolerance is not None:
+        settings = dataclasses.replace(settings, tolerance=float(o.tolerance))
+    preset = None if o.preset == "auto" else o.preset
+    out: list = [None] * len(pictures)
+    rest = list(range(len(pictures)))
+    if o.parts == "clean":
+        readings = trace.read_pictures(pictures, preset, o.speckle, o.work_pixels())
+        rest = [i for i, needs in enumerate(trace.needs_renderer(readings, settings.outline_settings())) if needs]
+        alone = [i for i in range(len(pictures)) if i not in set(rest)]
+        if alone:
+            if on_event and not rest:
+                on_event(Stage("read"))
+            got = trace.trace_alone([readings[i] for i in alone], [pictures[i].shape[:2] for i in alone],
+                                    settings.outline_settings(), colors=o.colors, max_paths=o.max_paths,
+                                    on_stage=on_event)
+            for i, r in zip(alone, got):
+                out[i] = r
+    if rest:
+        model = model_of(model)  # (torch's import with it)
+        from . import refine
+        from .raster import compiling
+
+        with compiling(o.compile):  # off by default: each new image size would compile afresh
+            got = refine.refine_batch(model, [to_tensor(pictures[i]) for i in rest], settings=settings,
+                                      parts=o.parts, colors=o.colors, segments=o.segments, quality=o.quality,
+                                      max_paths=o.max_paths, max_work_pixels=o.work_pixels(), speckle=o.speckle,
+                                      on_step=on_event, preset=preset)
+        for i, r in zip(rest, got):
+            out[i] = r
+    return [dataclasses.replace(v, notes=_notes(info)) for v, info in out]
+
+
+def _notes(info: dict) -> dict:
+    """What a result tells beside its paths: the kind of picture it was read as, and how."""
+    return {k: info[k] for k in ("kind", "reading", "start", "loss_end") if k in info}
+
+
+def vectorize_each(images: list, model=DEFAULT_MODEL, options: VectorizeOptions | None = None, *,
+                   on_event: Callable[[Event], None] | None = None, **fields) -> list[VectorImage | VectorizeError]:
+    """``vectorize`` of a list of pictures in which one picture's failure is its own: each entry
+    is the picture's ``VectorImage``, or a ``VectorizeError`` (one line) where its pipeline
+    raised anything (a dependency's error, memory running out). The pictures are vectorized
+    together; when that fails, each is vectorized alone, to find which. Options and the model
+    are checked first: a bad option raises, as in ``vectorize``; ``on_event`` as there."""
+    o = dataclasses.replace(options or VectorizeOptions(), **fields)
+    model = ModelRef(model) if isinstance(model, str) else model
+    check_segments(model, o.segments)
+    try:
+        return vectorize(list(images), model, o, on_event=on_event)
+    except Exception as exc:  # noqa: BLE001 - any failure is one picture's; KeyboardInterrupt is not caught
+        if len(images) == 1:
+            return [_failed(exc)]
+    out: list = []
+    for img in images:
+        try:
+            out.append(vectorize([img], model, o)[0])
+        except Exception as exc:  # noqa: BLE001
+            out.append(_failed(exc))
+    return out
+
+
+def _failed(exc: Exception) -> VectorizeError:
+    return exc if isinstance(exc, VectorizeError) else VectorizeError(f"could not vectorize: {describe(exc)}")
+
+
+def check_segments(model, segments: int | str | None) -> None:
+    """``ModelError`` when ``segments="auto"`` is asked of a model (or ``ModelRef``: then loaded) without
+    a segment predictor."""
+    if segments == "auto" and model_of(model).segment_predictor is None:
+        raise ModelError(f"model {getattr(model_of(model), 'name', '?')!r} has no segment predictor for segments='auto' "
+                         "(add one with `im2vec train-aux`)")
