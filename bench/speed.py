@@ -132,10 +132,25 @@ def folder(paths: list[Path], work: Path, name: str, src: Path = ROOT) -> tuple[
     return ours, theirs, out
 
 
-def same_svgs(a: Path, b: Path) -> tuple[int, int]:
-    """How many of ``a``'s SVGs are byte-identical to ``b``'s, of how many."""
+def same_svgs(a: Path, b: Path, inputs: Path) -> tuple[int, int, list[str]]:
+    """How many of ``a``'s SVGs are byte-identical to ``b``'s, of how many, and for each that is
+    not: its name and both SVGs' MSE against its input picture (rendered at 1x by cairo)."""
+    sys.path.insert(0, str(ROOT / "src"))
+    from im2vec_cli.files import load_picture
+    from im2vec_cli.vector import rasterize_svg
+
     names = sorted(p.name for p in a.glob("*.svg"))
-    return sum((a / n).read_bytes() == (b / n).read_bytes() for n in names if (b / n).exists()), len(names)
+    same, odd = 0, []
+    for n in names:
+        x, y = (a / n).read_text(), (b / n).read_text() if (b / n).exists() else ""
+        if x == y:
+            same += 1
+            continue
+        pic = load_picture(next(inputs.glob(n[:-4] + ".*")))
+        h, w, _ = pic.shape
+        mse = [float(((rasterize_svg(t, w, h) - pic) ** 2).mean()) if t else float("nan") for t in (x, y)]
+        odd.append(f"{n[:-4]} (MSE against the picture {mse[0]:.5f}, before {mse[1]:.5f})")
+    return same, len(names), odd
 
 
 def glyph_rows(work: Path, rounds: int) -> tuple[float, float, float]:
@@ -159,36 +174,43 @@ def glyph_rows(work: Path, rounds: int) -> tuple[float, float, float]:
 
 
 STAGES = [  # (what, the function whose cumulative time it is)
-    ("imports (Python, NumPy, SciPy, Pillow, click, svgwrite, im2vec)", "<frozen importlib._bootstrap>:_find_and_load"),
     ("read the file", "files.py:load_picture"),
-    ("read the picture (kind, clean picture)", "read.py:read"),
-    ("palette", "palette.py:quantize"),
+    ("read the picture (its kind, the clean picture)", "read.py:read"),
     ("regions traced", "regions.py:trace"),
+    ("  of which the palette (colour pictures)", "palette.py:quantize"),
     ("rings fitted with cubics", "fit.py:fit_rings"),
     ("crossings untangled", "untangle.py:untangle"),
     ("SVG written", "svg.py:to_svg"),
 ]
+FLOOR = ("import im2vec_cli.cli, im2vec_cli.api, scipy.ndimage, scipy.cluster.vq, contourpy, pathops, "
+         "skimage.morphology")  # what a traced picture's command imports
 
 
-def profile(path: Path) -> str:
-    """Where one ``vectorize`` of ``path`` spends its time, in one fresh process under cProfile
-    (which slows it: read the shares), by stage."""
-    code = (f"from im2vec_cli.cli import main\nimport sys\nsys.argv = ['im2vec', 'vectorize', {str(path)!r}, '-o', {os.devnull!r}]\n"
-            "try:\n    main()\nexcept SystemExit:\n    pass\n")
-    script = Path(tempfile.mkdtemp()) / "prof.py"
-    script.write_text(code)
-    stats_file = script.with_suffix(".prof")
+def profile(path: Path, rounds: int = 3) -> str:
+    """Where one ``vectorize`` of ``path`` spends its time: the interpreter with the imports a traced
+    picture needs (a fresh process, median of ``rounds``), and the stages of a second ``vectorize``
+    in one process under cProfile (which slows each stage: read the shares)."""
     env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
-    subprocess.run([sys.executable, "-m", "cProfile", "-o", str(stats_file), str(script)], env=env,
-                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True)
+    floor = statistics.median(_run([sys.executable, "-c", FLOOR], env) for _ in range(rounds))
+    bare = statistics.median(_run([sys.executable, "-c", "import numpy"]) for _ in range(rounds))
+    code = ("import cProfile, pstats, sys\nfrom im2vec_cli import api\napi.vectorize(sys.argv[1])\n"
+            "p = cProfile.Profile()\np.enable()\napi.vectorize(sys.argv[1]).to_svg()\np.disable()\n"
+            "p.dump_stats(sys.argv[2])\n")
+    stats_file = Path(tempfile.mkdtemp()) / "vectorize.prof"
+    subprocess.run([sys.executable, "-c", code, str(path), str(stats_file)], env=env, check=True,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     st = pstats.Stats(str(stats_file))
     whole = max(v[3] for v in st.stats.values())
-    cum = {}
+    cum: dict[str, float] = {}
     for (file, _, fn), v in st.stats.items():
-        key = f"{Path(file).name}:{fn}" if not file.startswith("<") else f"{file}:{fn}"
+        key = f"{Path(file).name}:{fn}"
         cum[key] = max(cum.get(key, 0.0), v[3])
-    lines = [f"| {what} | {cum.get(key, 0.0):.2f} | {cum.get(key, 0.0) / whole:.0%} |" for what, key in STAGES]
-    return (f"| stage | s (profiled) | share |\n|---|---|---|\n| the whole command | {whole:.2f} | 100% |\n"
+    lines = [f"| {what.replace('  ', '&nbsp;&nbsp;')} | {cum.get(key, 0.0):.3f} | {cum.get(key, 0.0) / whole:.0%} |"
+             for what, key in STAGES]
+    return (f"A fresh process that imports what a traced picture needs (Python, NumPy, SciPy, Pillow, click, "
+            f"svgwrite, contourpy, skia-pathops, scikit-image's morphology, im2vec's CLI): {floor:.2f} s "
+            f"(`python -c 'import numpy'`: {bare:.2f} s). The work itself, profiled:\n\n"
+            f"| stage | s (profiled) | share |\n|---|---|---|\n| `api.vectorize`, warm | {whole:.3f} | 100% |\n"
             + "\n".join(lines))
 
 
@@ -234,9 +256,10 @@ def main() -> None:
         rows.append((f"a folder of the {len(paths)} {name} pictures in one process", ours, theirs))
         if args.before:
             before, _, old = folder(paths, work, name, args.before.resolve())
-            same, n = same_svgs(out, old)
+            same, n, odd = same_svgs(out, old, work / f"{name}-in")
             notes.append(f"- {name}: {same} of {n} SVGs byte-identical to {args.before.name}'s "
-                         f"(which took {before:.2f} s on the folder in this run)")
+                         f"(which took {before:.2f} s on the folder in this run)"
+                         + (f"; the others: {', '.join(odd)}" if odd else ""))
     glyph, torch_only, no_refine = glyph_rows(work, max(3, args.rounds))
     notes.append(f"- one 64 px glyph, default refinement, process start included: {glyph:.2f} s; "
                  f"`python -c 'import torch'`: {torch_only:.2f} s ({glyph / torch_only:.2f}x)")

@@ -91,7 +91,7 @@ def test_folders_are_planned_by_their_cost():
     assert parallel.plan(o, [(512, 512)] * 2, 2, most=2, jobs=1)[0] == 1
     assert parallel.plan(o, [(512, 512)] * 9, 9, most=8, gpu=True)[0] == 1
     jobs, chunk, heavy = parallel.plan(o, [(512, 512)] * 100, 100, most=2)
-    assert (jobs, chunk, heavy) == (2, 7, False)  # about eight chunks a worker; nothing needs torch
+    assert (jobs, chunk, heavy) == (2, 7, False)  # sixteen chunks or more; nothing needs torch
     assert parallel.plan(o, [(64, 64)] * 100, 100, most=2)[2]  # most need the model: torch before the fork
     assert parallel.plan(dataclass_replace(o, effort="draft"), [(64, 64)] * 2, 2, most=2)[2] is False
 

@@ -295,7 +295,7 @@ def resolve_model(name_or_dir: str | os.PathLike) -> Path:
     raise ModelError(f"unknown model {name!r} (not a directory; shipped models: {', '.join(known)})")
 
 
-SAFETENSORS_FLOATS = {"F32", "F16", "BF16"}  # how a weight may be stored (pretrained.STORED_FLOATS); integers: I64
+STORED_TYPES = {"F32", "F16", "BF16", "I64", "I32", "BOOL"}  # a weight's (pretrained.STORED_FLOATS) or a buffer's
 
 
 def check_model_folder(folder: Path) -> ModelConfig:
@@ -320,7 +320,7 @@ def check_model_folder(folder: Path) -> ModelConfig:
         raise ModelError(f"{weights}: unreadable weights ({exc})") from None
     if max(ends, default=0) > size - 8 - n:
         raise ModelError(f"{weights}: unreadable weights (truncated: its tensors end past the file)")
-    odd = sorted(k for k, t in kinds.items() if t not in SAFETENSORS_FLOATS | {"I64"})
+    odd = sorted(k for k, t in kinds.items() if t not in STORED_TYPES)  # int8: a quantised float weight
     if odd:
-        raise ModelError(f"{weights}: {odd[0]} is stored as {kinds[odd[0]]}, not as floats")
+        raise ModelError(f"{weights}: {odd[0]} is stored as {kinds[odd[0]]}, a type no model holds")
     return cfg

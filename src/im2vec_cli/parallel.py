@@ -164,12 +164,13 @@ MODEL_PICTURE = 0.15  # a picture refined or drawn by the model, in a batch
 def plan(options: VectorizeOptions, sides: list[tuple[int, int] | None], count: int, *, most: int,
          jobs: int | None = None, gpu: bool = False, chunk: int = 32) -> tuple[int, int, bool]:
     """How to vectorize ``count`` pictures with ``options``: the worker processes (``jobs``, else
-    ``plan_jobs``'s; 1 on a GPU or for the model's own paths unrefined; at most one a chunk), the pictures a chunk (``chunk`` where some are refined together,
-    so that the SVGs do not depend on the workers; else about eight chunks a worker, so that none
-    waits long on the last), and whether most pictures need the model
-    (clean refined pictures up to the polish's size; all with the model's parts or no refinement),
-    when torch is best imported once before the workers fork.
-    ``sides``: the ``(W, H)`` of some of them (``None`` where unknown)."""
+    ``plan_jobs``'s; 1 on a GPU or for the model's own paths unrefined; at most one a chunk), the
+    pictures a chunk, and whether most pictures need the model (clean refined pictures up to the
+    polish's size; all with the model's parts or no refinement), when torch is best imported once
+    before the workers fork. Where most are refined, ``chunk`` at a time (refined together); else
+    in sixteen chunks or more, for the workers to share evenly. The chunks never depend on the
+    workers, so ``-j`` changes no SVG. ``sides``: the ``(W, H)`` of some of them (``None`` where
+    unknown)."""
     from .refine.settings import EFFORTS
 
     s = EFFORTS[options.effort]
@@ -180,9 +181,9 @@ def plan(options: VectorizeOptions, sides: list[tuple[int, int] | None], count: 
     jobs = max(1, min(jobs, count))
     small = [sz is not None and max(sz) <= side for sz in sides] if side is not None else [True]
     heavy = sum(small) * 2 >= max(1, len(small))  # most pictures need torch: imported once, before the fork
-    if not any(small):  # each traced alone: about eight chunks a worker
-        chunk = max(1, min(chunk, -(-count // (8 * jobs))))  # (else refined together, ``chunk`` at a time
-    return min(jobs, -(-count // chunk)), chunk, heavy  # whatever the workers: the same SVGs for any -j)
+    if not heavy:  # most pictures traced alone: sixteen chunks or more, for the workers to share evenly
+        chunk = max(1, min(chunk, -(-count // 16)))
+    return min(jobs, -(-count // chunk)), chunk, heavy  # (chunks whatever the workers: the same SVGs for any -j)
 
 
 def plan_jobs(sides: list[tuple[int, int] | None], count: int, most: int, model_side: int | None) -> int:

@@ -115,8 +115,8 @@ def _refined(model, pictures: list[np.ndarray], o: VectorizeOptions, on_event=No
     rest = list(range(len(pictures)))
     if o.parts == "clean":
         readings = trace.read_pictures(pictures, preset, o.speckle, o.work_pixels())
-        rest = [i for i, needs in enumerate(trace.needs_renderer(readings, settings.outline_settings())) if needs]
-        alone = [i for i in range(len(pictures)) if i not in set(rest)]
+        needs = trace.needs_renderer(readings, settings.outline_settings())
+        rest, alone = [i for i, n in enumerate(needs) if n], [i for i, n in enumerate(needs) if not n]
         if alone:
             if on_event and not rest:
                 on_event(Stage("read"))

@@ -363,7 +363,7 @@ def test_a_killed_worker_is_noticed(tmp_path, model_dir, kills):
 def test_jobs_are_capped_by_the_work(tmp_path, model_dir, monkeypatch):
     """`-j 6` on 40 refined pictures (two chunks of 32) starts two workers, not six model copies;
     on 2 (one chunk) none: the work runs here. Pictures each traced alone (a draft) are chunked
-    finer, about eight chunks a worker: 2 of them start 2 workers (issue 70: every core from two
+    finer, in sixteen chunks or more: 2 of them start 2 workers (issue 70: every core from two
     pictures up), 40 of them all six."""
     import im2vec_cli.parallel as parallel
     from im2vec_cli.vector import VectorImage

@@ -50,8 +50,8 @@ PLAN_SAMPLE = 64  # --jobs auto: the pictures whose sizes are read to weigh the 
                    "[5e-4]; smaller is more exact, larger more compact.")
 @click.option("--refine/--no-refine", default=True,
               help="Fit the paths to each input by gradient descent through the renderer; several inputs are "
-                   "refined in batches. --no-refine: the model's guess alone (about 0.3 s a 64 px glyph once the "
-                   "model is loaded, its passes included; with --parts model 0.15 s), for pictures like the model's "
+                   "refined in batches. --no-refine: the model's guess alone (about 0.15 s a 64 px glyph once the "
+                   "model is loaded, its passes included; with --parts model 0.1 s), for pictures like the model's "
                    "training set: scans, logos and other sets' pictures need refinement. [on]")
 @click.option("--effort", type=click.Choice(EFFORTS), default="fast", show_default=True,
               help="With refinement: draft (clean outlines traced and fitted, not polished: the quickest), fast "

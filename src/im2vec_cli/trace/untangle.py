@@ -57,7 +57,9 @@ CROSS_BLOCK = 64  # edges tested at once by ``crosses``, against the edges in th
 def crosses(contours: list[np.ndarray], samples: int = 16) -> bool:
     """Whether closed cubic contours ``(3S, 2)`` cross themselves or each other (their
     polylines at ``samples`` lines per cubic; touching end to end is not crossing)."""
-    polys = [flatten_ring(c, samples) for c in contours]
+    polys = [flatten_ring(c, samples) for c in contours if len(c)]
+    if not polys:  # a shape without contours crosses nothing (it crashed two real 512 px icons: issue 69)
+        return False
     a = np.concatenate(polys)
     b = np.concatenate([np.roll(p, -1, 0) for p in polys])
     owner = np.concatenate([np.full(len(p), i) for i, p in enumerate(polys)])
