@@ -30,6 +30,7 @@ from .vector import VectorImage
 def load_model(name_or_dir: str = DEFAULT_MODEL, device="auto"):
     """A shipped model by name (``fonts``, ``mnist``, ``emoji``, ``icons``) or a model folder written by
     ``im2vec train`` / ``export``, on ``device`` (a ``torch.device`` or ``auto``: CUDA, then MPS, then CPU)."""
+    from . import infer, refine  # noqa: F401 - what uses a model, imported with it (the CLI's collector is paused)
     from .model.pretrained import from_pretrained
     from .runtime import resolve_device
 
@@ -52,11 +53,7 @@ class ModelRef:
 
     def load(self):
         if self._model is None:
-            from .runtime import collector_paused
-
-            with collector_paused():  # torch's import and the model: 0.2-0.3 s less
-                self._model = self._load()
-                from . import infer, refine  # noqa: F401 - what uses the model, imported with it
+            self._model = self._load()
         return self._model
 
 

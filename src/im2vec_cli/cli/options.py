@@ -34,18 +34,27 @@ def set_threads_for(pictures: int) -> int:
 
 def lazy_model(name: str, device: str, seed: int):
     """``load_model``'s model as an ``api.ModelRef``, loaded where a picture first needs it (one
-    traced and not polished does not: neither the model nor torch is loaded for it). Checked now:
-    the name, and that the model draws paths; Python, NumPy and (when it loads) torch seeded."""
+    traced and not polished does not: neither the model nor torch is loaded for it), with the
+    collector paused (``starting_up``). Checked now: the name, the folder (``check_model_folder``),
+    that the model draws paths, and the device's name; Python, NumPy and (when it loads) torch seeded."""
     from ..api import ModelRef
-    from ..config import ModelConfig, resolve_model
+    from ..config import check_model_folder, resolve_model
     from ..errors import ModelError
-    from ..runtime import seed_everything
+    from ..runtime import check_device, seed_everything
+    from .app import starting_up
 
     seed_everything(seed)
-    folder = resolve_model(name)
-    if (folder / "config.json").is_file() and ModelConfig.load(folder / "config.json").arch == "imagevae":
+    if check_model_folder(resolve_model(name)).arch == "imagevae":
         raise ModelError(f"{name} is an ImageVAE baseline: it draws pixels, not paths (only `im2vec eval` takes it)")
-    return ModelRef(name, device)  # torch_ready gives torch the seed when the model loads
+    check_device(device)
+
+    def load():
+        with starting_up():  # torch's import and the model without the collector: 0.2-0.3 s less
+            from .. import api
+
+            return api.load_model(name, device)  # (torch_ready gives torch the seed)
+
+    return ModelRef(load=load)
 
 
 def load_model(name: str, device: str, seed: int, raster_ok: bool = False):
