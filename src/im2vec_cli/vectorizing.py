@@ -100,8 +100,7 @@ def vectorize(images, model=DEFAULT_MODEL, options: VectorizeOptions | None = No
 def _refined(model, pictures: list[np.ndarray], o: VectorizeOptions, on_event=None) -> list[VectorImage]:
     """``vectorize`` with refinement: each result with its ``notes`` (``_notes``). With clean parts
     the pictures are read first; those that are not polished are traced here without the renderer
-    (``trace.trace_alone``), the others refined (``refine.refine_batch``, which reads them again: they
-    are at most the polish's size)."""
+    (``trace.trace_alone``), the others refined (``refine.refine_batch``, given their readings)."""
     settings = EFFORTS[o.effort]
     if o.simplify_px is not None:
         settings = dataclasses.replace(settings, simplify_tol=o.simplify_px)
@@ -109,7 +108,7 @@ def _refined(model, pictures: list[np.ndarray], o: VectorizeOptions, on_event=No
         settings = dataclasses.replace(settings, tolerance=float(o.tolerance))
     preset = None if o.preset == "auto" else o.preset
     out: list = [None] * len(pictures)
-    rest = list(range(len(pictures)))
+    rest, readings = list(range(len(pictures))), None
     if o.parts == "clean":
         readings = trace.read_pictures(pictures, preset, o.speckle, o.work_pixels())
         needs = trace.needs_renderer(readings, settings.outline_settings())
@@ -131,7 +130,8 @@ def _refined(model, pictures: list[np.ndarray], o: VectorizeOptions, on_event=No
             got = refine.refine_batch(model, [to_tensor(pictures[i]) for i in rest], settings=settings,
                                       parts=o.parts, colors=o.colors, segments=o.segments, quality=o.quality,
                                       max_paths=o.max_paths, max_work_pixels=o.work_pixels(), speckle=o.speckle,
-                                      on_step=on_event, preset=preset)
+                                      on_step=on_event, preset=preset,
+                                      readings=None if readings is None else [readings[i] for i in rest])
         for i, r in zip(rest, got):
             out[i] = r
     return [dataclasses.replace(v, notes=_notes(info)) for v, info in out]

@@ -76,18 +76,19 @@ def refine_batch(
     max_work_pixels: int = MAX_WORK_PIXELS,
     preset: str | None = None,
     speckle: int | None = None,
+    readings: list[Reading] | None = None,
 ) -> list[tuple[VectorImage, dict]]:
-    """``refine`` of many images ``(3, H_i, W_i)``: images of one size are refined together,
-    ``batch`` at a time, each step one render of them all; an image that has converged stops
-    costing. Each image gets what ``refine`` alone gives it, up to float rounding (the
-    batch sums per-image losses; Adam's state is per coordinate). Returns ``(vector image,
-    summary)`` per image, in order. A picture of more than ``max_work_pixels`` is vectorized at
-    an area-averaged copy that large, its result scaled back to its own frame.
+    """``refine`` of many images ``(3, H_i, W_i)``: images of one size are refined together, ``batch`` at a
+    time, each step one render of them all; an image that has converged stops costing. Each image gets what
+    ``refine`` alone gives it, up to float rounding (the batch sums per-image losses; Adam's state is per
+    coordinate). Returns ``(vector image, summary)`` per image, in order. A picture of more than
+    ``max_work_pixels`` is vectorized at an area-averaged copy that large, its result scaled back to its frame.
 
     With ``parts="clean"`` each picture is first read (``trace.read``, ``preset``, ``speckle``) and
-    its clean picture traced; the summary's ``kind`` and ``reading`` say what it was read as."""
+    its clean picture traced; the summary's ``kind`` and ``reading`` say what it was read as.
+    ``readings``: theirs where the caller has them (``trace.read_pictures``, these options): not read again."""
     sizes = _sizes(images, parts)
-    images, readings = _read(images, parts, preset, speckle, max_work_pixels, on_step)
+    images, readings = _read(images, parts, preset, speckle, max_work_pixels, on_step, readings)
     out: list = [None] * len(images)
     by_size: dict[tuple[int, int], list[int]] = {}
     for i, im in enumerate(images):
@@ -109,9 +110,9 @@ def refine_batch(
                     if parts == "model":
                         got = _model_paths(run, list(range(len(ids))), **kw)
                     else:
-                        got = clean_outlines([_array(im) for im in run.images], run, settings.outline_settings(),
-                                             colors=colors,
-                                             max_paths=max_paths, readings=[readings[i] for i in ids], on_stage=on_step,
+                        pics = [_array(im) for im in run.images]
+                        got = clean_outlines(pics, run, settings.outline_settings(), colors=colors, max_paths=max_paths,
+                                             readings=[readings[i] for i in ids], on_stage=on_step,
                                              model_paths=functools.partial(_model_paths, run, **kw, outline=True))
                     for i, r in zip(ids, got):
                         out[i] = r
@@ -132,15 +133,16 @@ def _sizes(images: list[torch.Tensor], parts: str) -> list[tuple[int, int]]:
     return [tuple(im.shape[1:]) for im in images]
 
 
-def _read(images: list[torch.Tensor], parts: str, preset: str | None, speckle: int | None, most: int, on_step=None
-          ) -> tuple[list[torch.Tensor], list[Reading] | None]:
-    """With ``parts="clean"`` each picture read (``trace.read_pictures``: at
-    most ``most`` pixels) and its clean picture, ``(3, H', W')`` on its device; ``on_step``
+def _read(images: list[torch.Tensor], parts: str, preset: str | None, speckle: int | None, most: int, on_step=None,
+          readings: list[Reading] | None = None) -> tuple[list[torch.Tensor], list[Reading] | None]:
+    """With ``parts="clean"`` each picture read (``trace.read_pictures``: at most ``most`` pixels;
+    ``readings`` where given) and its clean picture, ``(3, H', W')`` on its device; ``on_step``
     hears ``Stage("read")``. Else each picture at most ``most`` pixels, and no readings."""
     if parts != "clean":
         return [_tensor(workable(_array(im), most), im) if im.shape[1] * im.shape[2] > most else im
                 for im in images], None
-    readings = read_pictures([_array(im) for im in images], preset, speckle, most)
+    if readings is None:
+        readings = read_pictures([_array(im) for im in images], preset, speckle, most)
     if on_step:
         on_step(Stage("read"))
     return [_tensor(r.picture, im) for r, im in zip(readings, images)], readings
