@@ -176,28 +176,25 @@ def plan(options: VectorizeOptions, sides: list[tuple[int, int] | None], count: 
     s = EFFORTS[options.effort]
     side = (s.max_side if s.outline_steps > 0 else 0) if options.refine and options.parts == "clean" else None
     batched = not options.refine and options.parts == "model"  # one forward pass: a pool only slows it down
+    known = [sz or (512, 512) for sz in sides] or [(512, 512)]  # a size unknown: a 512 px picture's
+    needs = [side is None or max(sz) <= side for sz in known]  # which need the model
     if jobs is None:
-        jobs = 1 if gpu or batched else plan_jobs(sides, count, most, side)
+        jobs = 1 if gpu or batched else plan_jobs(known, needs, count, most)
     jobs = max(1, min(jobs, count))
-    small = [sz is not None and max(sz) <= side for sz in sides] if side is not None else [True]
-    heavy = sum(small) * 2 >= max(1, len(small))  # most pictures need torch: imported once, before the fork
+    heavy = sum(needs) * 2 >= len(needs)  # most pictures need torch: imported once, before the fork
     if not heavy:  # most pictures traced alone: sixteen chunks or more, for the workers to share evenly
         chunk = max(1, min(chunk, -(-count // 16)))
     return min(jobs, -(-count // chunk)), chunk, heavy  # (chunks whatever the workers: the same SVGs for any -j)
 
 
-def plan_jobs(sides: list[tuple[int, int] | None], count: int, most: int, model_side: int | None) -> int:
+def plan_jobs(sides: list[tuple[int, int]], needs: list[bool], count: int, most: int) -> int:
     """The worker processes (1: none, in this process) that vectorize ``count`` pictures soonest, of
     at most ``most``, by the cost measured above: each worker's start, and the pictures' work shared.
-
-    ``sides``: the ``(W, H)`` of some of the pictures (``None`` where unknown: a 512 px one is
-    assumed), taken as a sample of all; ``model_side``: a picture of at most this longer side needs
-    the model (``None``: every picture does)."""
-    known = [s if s is not None else (512, 512) for s in sides] or [(512, 512)]
-    model = [model_side is None or max(s) <= model_side for s in known]
-    each = [MODEL_PICTURE if m else TRACE_PICTURE + TRACE_MEGAPIXEL * s[0] * s[1] / 1e6 for s, m in zip(known, model)]
+    ``sides``: the ``(W, H)`` of some of the pictures, taken as a sample of all; ``needs``: whether
+    each of them needs the model."""
+    each = [MODEL_PICTURE if m else TRACE_PICTURE + TRACE_MEGAPIXEL * s[0] * s[1] / 1e6 for s, m in zip(sides, needs)]
     work = sum(each) / len(each) * count
-    start = MODEL_START if any(model) else 0.0
+    start = MODEL_START if any(needs) else 0.0
 
     def finish(jobs: int) -> float:  # this process has its imports already; a worker pays its own
         return start + work if jobs == 1 else WORKER_START + start + work / jobs

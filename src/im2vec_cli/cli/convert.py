@@ -140,7 +140,7 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, toleranc
 
 def _jobs(jobs, items, options, free: int, gpu: bool) -> tuple[int, int, bool]:
     """``parallel.plan``'s workers (``-j``, else as many as finish soonest by the sizes of up to
-    ``PLAN_SAMPLE`` pictures; 1 on a GPU), pictures a chunk, and whether any picture needs the model."""
+    ``PLAN_SAMPLE`` pictures; 1 on a GPU), pictures a chunk, and whether most pictures need the model."""
     from .. import parallel
 
     sides = [_picture_size(item) for item, _ in items[:PLAN_SAMPLE]]
