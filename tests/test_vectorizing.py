@@ -4,6 +4,7 @@ folders are planned by their cost."""
 
 from __future__ import annotations
 
+import dataclasses
 import subprocess
 import sys
 from pathlib import Path
@@ -93,13 +94,7 @@ def test_folders_are_planned_by_their_cost():
     jobs, chunk, heavy = parallel.plan(o, [(512, 512)] * 100, 100, most=2)
     assert (jobs, chunk, heavy) == (2, 7, False)  # sixteen chunks or more; nothing needs torch
     assert parallel.plan(o, [(64, 64)] * 100, 100, most=2)[2]  # most need the model: torch before the fork
-    assert parallel.plan(dataclass_replace(o, effort="draft"), [(64, 64)] * 2, 2, most=2)[2] is False
-
-
-def dataclass_replace(o, **kw):
-    import dataclasses
-
-    return dataclasses.replace(o, **kw)
+    assert parallel.plan(dataclasses.replace(o, effort="draft"), [(64, 64)] * 2, 2, most=2)[2] is False
 
 
 def test_a_broken_model_is_refused_before_any_picture(tmp_path):

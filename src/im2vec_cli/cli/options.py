@@ -39,13 +39,12 @@ def lazy_model(name: str, device: str, seed: int):
     that the model draws paths, and the device's name; Python, NumPy and (when it loads) torch seeded."""
     from ..api import ModelRef
     from ..config import check_model_folder, resolve_model
-    from ..errors import ModelError
     from ..runtime import check_device, seed_everything
     from .app import starting_up
 
     seed_everything(seed)
     if check_model_folder(resolve_model(name)).arch == "imagevae":
-        raise ModelError(f"{name} is an ImageVAE baseline: it draws pixels, not paths (only `im2vec eval` takes it)")
+        raise _draws_pixels(name)
     check_device(device)
 
     def load():
@@ -59,7 +58,6 @@ def lazy_model(name: str, device: str, seed: int):
 
 def load_model(name: str, device: str, seed: int, raster_ok: bool = False):
     """The model for a command, seeded; the ImageVAE baseline only where ``raster_ok``."""
-    from ..errors import ModelError
     from .app import starting_up
 
     with starting_up():
@@ -69,8 +67,14 @@ def load_model(name: str, device: str, seed: int, raster_ok: bool = False):
         seed_everything(seed)
         model = load(name, device)
     if model.raster_output and not raster_ok:
-        raise ModelError(f"{name} is an ImageVAE baseline: it draws pixels, not paths (only `im2vec eval` takes it)")
+        raise _draws_pixels(name)
     return model
+
+
+def _draws_pixels(name: str):
+    from ..errors import ModelError
+
+    return ModelError(f"{name} is an ImageVAE baseline: it draws pixels, not paths (only `im2vec eval` takes it)")
 
 
 def parse_segments(value: str | None) -> int | str | None:

@@ -100,7 +100,8 @@ def clean_outlines(pictures: list[np.ndarray], polisher: Polisher | None, s: Out
     picture. ``model_paths`` gives the model's paths of pictures (the second start).
     ``readings``: what each picture is (``read.read``: ``images`` are their clean pictures); its
     kind shapes the trace (pixel art along its pixel edges), the palette of a photo and
-    whether the outline is polished (``polished``); ``polisher`` may be None where none is. ``on_stage`` hears each stage done (``events.STAGES``).
+    whether the outline is polished (``polished``); ``polisher`` may be None where none is.
+    ``on_stage`` hears each stage done (``events.STAGES``).
 
     Returns per picture the vector image and a summary: ``loss_end`` (the polisher's loss),
     ``start`` (which start was kept), ``segments``, and the model stage's figures where it ran.
