@@ -28,7 +28,7 @@ fuzz: install
 	HYPOTHESIS_PROFILE=long $(PY) -m pytest -q tests/test_fuzz.py
 
 lint: install
-	$(PY) -m ruff check src tests bench
+	$(PY) -m ruff check src tests bench docs
 
 bench: install
 	$(PY) bench/raster.py

@@ -11,8 +11,8 @@ measures it and the shipped model on the same images:
 
 and ships the phase only when its test-split L2 is lower by ``--margin`` (1%) at least: the model files replace those in
 models/<set>; metrics.json takes the new figures (the replaced ones kept under
-``before_phase_<n>``) and a ``phases`` entry; README.md gets a section with the command, the
-config, the code commit and the validation curve. Commit models/<set> afterwards.
+``before_phase_<n>``) and a ``phases`` entry; docs/results/history-<set>.md gets a section with the command, the
+config, the code commit and the validation curve, and the card's figures are rewritten (docs/figures.py). Commit models/<set> afterwards.
 
 A RUN trained on a lent GPU machine (``bench/device_phases.py``) holds no checkpoint.pt: its
 fp16 export came back in RUN/exported (with export.json, its step), and is measured as it is.
@@ -64,6 +64,9 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
+sys.path.insert(0, str(ROOT / "docs"))
+
+import figures  # noqa: E402 - docs/figures.py
 
 from im2vec_cli.config import DEFAULT_NEIGHBOURS, MAX_FEEDBACK  # noqa: E402
 from im2vec_cli.evaluate import eval_files, reconstruction_l2  # noqa: E402
@@ -214,8 +217,9 @@ def with_config(scratch: Path, **changes) -> None:
 def ship(run: Path | None, scratch: Path, shipped: Path, step: int, n_test: int, before: dict, after: dict,
          passes: int | None = None, commit: str = "unknown", device: str | None = None, select: bool = False,
          path_passes: int | None = None, solve_colors: bool = False, solve_order: bool = False,
-         point_passes: int | None = None, raw: bool = False) -> None:
-    """``device``: the lent GPU the run trained on (bench/device_phases.py), if it did."""
+         point_passes: int | None = None, raw: bool = False, history: Path | None = None) -> None:
+    """``device``: the lent GPU the run trained on (bench/device_phases.py), if it did; ``history``: the
+    file the phase's section is appended to (default docs/results/history-<shipped's name>.md)."""
     metrics = json.loads((shipped / "metrics.json").read_text())
     phase = metrics.get("earlier_phases", 0) + len(metrics.get("phases", [])) + 1  # earlier: before this script
     events, cfg, started, added = [], {}, None, 0  # no run (``passes``): no steps, no curve
@@ -249,7 +253,6 @@ def ship(run: Path | None, scratch: Path, shipped: Path, step: int, n_test: int,
     for k, test_key in (("outline_iou_4x", "test_outline_iou"), ("chamfer_px", "test_chamfer_px")):
         if test_key in after:
             metrics[k] = after[test_key]
-    card = (shipped / "README.md").read_text().rstrip() + "\n\n" + card_section(entry, cfg, events) + "\n"
 
     def write(tmp: Path) -> None:
         for f in shipped.iterdir():  # the card's own files (README, metrics, segments.json, ...)
@@ -259,9 +262,13 @@ def ship(run: Path | None, scratch: Path, shipped: Path, step: int, n_test: int,
             if (scratch / name).is_file():
                 shutil.copy2(scratch / name, tmp / name)
         atomic_write(tmp / "metrics.json", json.dumps(metrics, indent=1) + "\n")
-        atomic_write(tmp / "README.md", card)
 
     replace_folder(shipped, write)
+    history = history or ROOT / "docs" / "results" / f"history-{shipped.name}.md"  # one section a phase
+    earlier = history.read_text().rstrip() + "\n\n" if history.is_file() else ""
+    atomic_write(history, earlier + card_section(entry, cfg, events) + "\n")
+    if shipped.resolve().parent == ROOT / "models":
+        figures.write()  # the card's "How good" block and README's tables, from the new metrics.json
 
 
 def card_section(entry: dict, cfg: dict, events: list[dict]) -> str:

@@ -19,8 +19,8 @@ from pathlib import Path
 
 from PIL import Image, ImageDraw
 
-from im2vec_cli.data.folder import list_images
 from im2vec_cli.config import REPO_MODELS
+from im2vec_cli.data.folder import list_images
 from im2vec_cli.model.prior import NEIGHBOURS_CONFIG
 
 N, COLUMNS, CELL = 24, 8, 96  # CELL: `sample`'s contact sheet cell

@@ -125,12 +125,14 @@ def test_shipping_names_the_commit_it_is_given_and_replaces_only_the_model_files
                                                       "training": {"steps": 100, "wall": "5 min"}}))
     figures = {"test_recon_l2": 0.02, "test_recon_l2_stderr": 0.001, "assets_recon_l2": 0.02,
                "assets_fitted_recon_l2": 0.001}
-    ship(None, scratch, shipped, 100, 10, figures, {**figures, "test_recon_l2": 0.01}, passes=2, commit="fdc60e9")
+    history = tmp_path / "history.md"
+    ship(None, scratch, shipped, 100, 10, figures, {**figures, "test_recon_l2": 0.01}, passes=2, commit="fdc60e9",
+         history=history)
     metrics = json.loads((shipped / "metrics.json").read_text())
     assert metrics["phases"][-1]["commit"] == "fdc60e9" and metrics["test_recon_l2"] == 0.01
     assert metrics["before_phase_1"]["test_recon_l2"] == 0.02 and metrics["step"] == 100
-    card = (shipped / "README.md").read_text()
-    assert "## Phase 1 (" in card and "code at fdc60e9)" in card
+    assert (shipped / "README.md").read_text() == "# card\n"  # the card is kept; its history grows
+    assert "## Phase 1 (" in history.read_text() and "code at fdc60e9)" in history.read_text()
     assert (shipped / "config.json").read_text() == '{"feedback": 2}' and (shipped / "segments.json").is_file()
     assert not (shipped / "latent_neighbours.json").exists()
 
