@@ -5,7 +5,7 @@ PIP ?= .venv/bin/pip
 TORCH_PIN ?= torch==2.13.0
 TORCH_INDEX ?= https://download.pytorch.org/whl/cpu
 
-.PHONY: install test test-slow fuzz lint bench-scale train-fonts train-mnist train-emoji train-icons bench bench-cli bench-safety bench-hardening bench-realworld bench-morphs bench-sets bench-vectorize bench-outlines bench-solves bench-folder bench-speed results demo data-fonts data-mnist data-emoji data-icons clean
+.PHONY: install test test-slow fuzz lint bench-scale train-fonts train-mnist train-emoji train-icons bench bench-cli bench-safety bench-hardening bench-realworld bench-morphs bench-sets bench-vectorize bench-outlines bench-solves bench-folder bench-speed bench-ratios bench-fill-bound docs results demo data-fonts data-mnist data-emoji data-icons clean
 
 install: .venv/.installed
 
@@ -98,6 +98,20 @@ bench-outlines: bench-sets
 # the variants side by side in one run (docs/BENCHMARKS.md). About 3 minutes on one thread.
 bench-solves: bench-sets
 	$(PY) bench/solves.py
+
+# Im2Vec against our ImageVAE on the 64 test assets of each set, amortised and fitted (docs/results/ratios.md),
+# and what a filled outline can reach on MNIST's grey strokes (docs/results/fill-bound.md); `make docs` publishes them.
+bench-ratios: install
+	$(PY) bench/ratios.py --markdown docs/results/ratios.md
+
+bench-fill-bound: install
+	command -v potrace >/dev/null || (apt-get update -q && apt-get install -y -q potrace)
+	$(PY) bench/fill_bound.py --markdown docs/results/fill-bound.md
+
+# RESULTS.md, README's tables and the cards' figures rewritten from docs/results/ and models/*/metrics.json,
+# no eval rerun (make results reruns them).
+docs: install
+	$(PY) docs/make_results.py --reuse --data $(DATA)
 
 # As fast as vtracer (issue 70): one call with its process start, and folders of made and real pictures (Adwaita
 # icons from Debian's adwaita-icon-theme, scikit-image's sample pictures), im2vec and vtracer side by side in one

@@ -131,40 +131,11 @@ def main():
     rows, faces = glyph_set(args.n)
     n = len(rows)
     print(f"{n} glyphs of {faces} FreeFont/Lato faces at {SIZE} px", flush=True)
-    res = {}
     with tempfile.TemporaryDirectory() as tmp:
-        src, pgm, few = Path(tmp, "png"), Path(tmp, "pgm"), Path(tmp, "sample")
-        for d in (src, pgm, few):
-            d.mkdir()
         sample = [rows[round(i * (n - 1) / (args.sample - 1))] for i in range(args.sample)]
-        for r in rows:
-            (src / f"{r['name']}.png").write_bytes(r["png"])
-            (pgm / f"{r['name']}.pgm").write_bytes(_pgm(Image.open(io.BytesIO(r["png"]))))
-        for r in sample:
-            (few / f"{r['name']}.png").write_bytes(r["png"])
-        one = Path(tmp, "one")
-        one.mkdir()
-        (one / "a.png").write_bytes(rows[0]["png"])
-        base = ["vectorize", "--model", args.model]
-        start, _ = timed(EXE + [*base, str(one / "a.png"), "-o", str(Path(tmp, "a.svg")), "--no-refine"])
-        cache = {"TORCHINDUCTOR_CACHE_DIR": str(Path(tmp, "inductor"))}  # empty at first: a fresh machine
-        jobs = min(os.cpu_count() or 1, 8)
-        # the defaults first and again last: this machine's speed drifts by 20% over minutes
-        runs = {f"defaults (-j {jobs})": ([], None), "--compile, cold cache": (["--compile"], cache),
-                "--compile, warm cache": (["--compile"], cache), "-j 1": (["-j", "1"], None),
-                f"defaults (-j {jobs}), again": ([], None), "--no-refine": (["--no-refine"], None)}
-        outs = {}
-        for name, (extra, env) in runs.items():
-            out = Path(tmp, f"out{len(outs)}")
-            wall, mib = timed(EXE + [*base, str(src), "-o", str(out), *extra], env)
-            outs[name] = out
-            res[name] = {"s": wall, "mib": mib, "per_s": n / wall}
-            print(f"{name}: {wall:.1f} s, {n / wall:.1f} glyphs/s, peak {mib:.0f} MiB", flush=True)
-        res["--no-refine"]["after_start"] = n / max(res["--no-refine"]["s"] - start, 1e-9)
-        wall, mib = timed(["potrace", "-s", *sorted(str(p) for p in pgm.glob("*.pgm"))])
-        res["potrace"] = {"s": wall, "mib": mib, "per_s": n / wall}
+        src, pgm, few = _inputs(Path(tmp), rows, sample)
+        start, res, default = folder_runs(Path(tmp), src, pgm, n, args.model, rows[0]["png"])
         truths = {r["name"]: rasterize_svg(r["svg"], SIZE * UP, SIZE * UP).mean(-1) < 0.5 for r in sample}
-        default = outs[next(iter(runs))]
         res["iou"] = {"defaults": _mean_iou(default, truths)}
         for name, code in [("one image at a time", ROOT), ("one image at a time, before", args.before)]:
             if code is None:
@@ -181,12 +152,52 @@ def main():
             big.mkdir()
             for i in range(args.memory):
                 os.link(src / f"{rows[i % n]['name']}.png", big / f"{i:05d}.png")
-            wall, mib = timed(EXE + [*base, str(big), "-o", str(Path(tmp, "big_out")), "--no-refine"])
+            wall, mib = timed(EXE + ["vectorize", "--model", args.model, str(big), "-o", str(Path(tmp, "big_out")),
+                                     "--no-refine"])
             res["memory"] = {"files": args.memory, "s": wall, "mib": mib}
     text = markdown(res, n, faces, start, args)
     print(text)
     if args.markdown:
         Path(args.markdown).write_text(text)
+
+
+def _inputs(tmp: Path, rows: list[dict], sample: list[dict]) -> tuple[Path, Path, Path]:
+    """The glyphs as PNG (``png/``) and as PGM for potrace (``pgm/``), and the sample (``sample/``)."""
+    src, pgm, few = tmp / "png", tmp / "pgm", tmp / "sample"
+    for d in (src, pgm, few):
+        d.mkdir()
+    for r in rows:
+        (src / f"{r['name']}.png").write_bytes(r["png"])
+        (pgm / f"{r['name']}.pgm").write_bytes(_pgm(Image.open(io.BytesIO(r["png"]))))
+    for r in sample:
+        (few / f"{r['name']}.png").write_bytes(r["png"])
+    return src, pgm, few
+
+
+def folder_runs(tmp: Path, src: Path, pgm: Path, n: int, model: str, first: bytes) -> tuple[float, dict, Path]:
+    """The folder run each way (and potrace's): (one glyph's --no-refine wall, the figures, the defaults' SVGs)."""
+    one = tmp / "one"
+    one.mkdir()
+    (one / "a.png").write_bytes(first)
+    base = ["vectorize", "--model", model]
+    start, _ = timed(EXE + [*base, str(one / "a.png"), "-o", str(tmp / "a.svg"), "--no-refine"])
+    cache = {"TORCHINDUCTOR_CACHE_DIR": str(tmp / "inductor")}  # empty at first: a fresh machine
+    jobs = min(os.cpu_count() or 1, 8)
+    # the defaults first and again last: this machine's speed drifts by 20% over minutes
+    runs = {f"defaults (-j {jobs})": ([], None), "--compile, cold cache": (["--compile"], cache),
+            "--compile, warm cache": (["--compile"], cache), "-j 1": (["-j", "1"], None),
+            f"defaults (-j {jobs}), again": ([], None), "--no-refine": (["--no-refine"], None)}
+    outs, res = {}, {}
+    for name, (extra, env) in runs.items():
+        out = tmp / f"out{len(outs)}"
+        wall, mib = timed(EXE + [*base, str(src), "-o", str(out), *extra], env)
+        outs[name] = out
+        res[name] = {"s": wall, "mib": mib, "per_s": n / wall}
+        print(f"{name}: {wall:.1f} s, {n / wall:.1f} glyphs/s, peak {mib:.0f} MiB", flush=True)
+    res["--no-refine"]["after_start"] = n / max(res["--no-refine"]["s"] - start, 1e-9)
+    wall, mib = timed(["potrace", "-s", *sorted(str(p) for p in pgm.glob("*.pgm"))])
+    res["potrace"] = {"s": wall, "mib": mib, "per_s": n / wall}
+    return start, res, outs[next(iter(runs))]
 
 
 def _mean_iou(folder: Path, truths: dict) -> float:

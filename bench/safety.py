@@ -61,6 +61,32 @@ def svg(body, size=100):
     return f'<svg xmlns="http://www.w3.org/2000/svg" width="{size}" height="{size}">{body}</svg>'
 
 
+CASES = {  # name -> the arguments of the case, run in make()'s folder
+    "vectorize -o /dev/null": ["vectorize", "g.png", "-o", "/dev/null"],
+    "vectorize -o /dev/full": ["vectorize", "g.png", "-o", "/dev/full"],
+    "vectorize (1024 px JPEG)": ["vectorize", "big.jpg", "-o", "big.svg"],
+    "render the vectorized 1024 px JPEG": ["render", "big.svg", "-o", "big.png"],
+    "render dashed ring": ["render", "ring.svg", "-o", "ring.png"],
+    "render dasharray 0.001": ["render", "dash001.svg", "-o", "d1.png"],
+    "render dasharray 0.0125": ["render", "dash0125.svg", "-o", "d2.png"],
+    "render 5,000-segment polygon": ["render", "poly5000.svg", "-o", "p1.png"],
+    "render 20,000-segment polygon": ["render", "poly20000.svg", "-o", "p2.png"],
+    "render 199,000-segment polygon": ["render", "poly199000.svg", "-o", "p3.png"],
+    "render 4,900 rectangles": ["render", "rects4900.svg", "-o", "r.png"],
+    "render clip-path": ["render", "clip.svg", "-o", "c.png"],
+    "render visibility hidden": ["render", "hidden.svg", "-o", "h.png"],
+    "eval on a folder holding dasharray 0.001": ["eval", "--data", "evaldata", "-o", "e.json"],
+    "train on 1 image": ["train", "train1", "--config", "c.json", "--out", "run1", "--device", "cpu"],
+    "train on 2 images": ["train", "train2", "--config", "c.json", "--out", "run2", "--device", "cpu"],
+    "train onto the finished run": ["train", "train2", "--config", "c.json", "--out", "run2", "--device", "cpu"],
+    "export onto a model folder": ["export", "run2", "-o", "run2/model"],
+    "fit-prior without -o": ["fit-prior", "train2", "--model", "run2/model"],
+    "./fonts beside the default model": ["vectorize", "g.png", "-o", "f.svg", "--no-refine"],
+    "- mixed with files": ["vectorize", "-", "g.png", "-o", "mixed"],
+    "sample -o -": ["sample", "-o", "-"],
+}
+
+
 def make(d: Path) -> dict[str, list[str]]:
     """The input files, and the cases: name -> arguments."""
     rng = random.Random(0)
@@ -99,30 +125,7 @@ def make(d: Path) -> dict[str, list[str]]:
     (d / "c.json").write_text('{"model": {"image_size": 32, "latent": 8, "paths": 2}, '
                               '"train": {"batch": 2, "steps": 2, "workers": 1}}')
     (d / "fonts").mkdir()
-    return {
-        "vectorize -o /dev/null": ["vectorize", "g.png", "-o", "/dev/null"],
-        "vectorize -o /dev/full": ["vectorize", "g.png", "-o", "/dev/full"],
-        "vectorize (1024 px JPEG)": ["vectorize", "big.jpg", "-o", "big.svg"],
-        "render the vectorized 1024 px JPEG": ["render", "big.svg", "-o", "big.png"],
-        "render dashed ring": ["render", "ring.svg", "-o", "ring.png"],
-        "render dasharray 0.001": ["render", "dash001.svg", "-o", "d1.png"],
-        "render dasharray 0.0125": ["render", "dash0125.svg", "-o", "d2.png"],
-        "render 5,000-segment polygon": ["render", "poly5000.svg", "-o", "p1.png"],
-        "render 20,000-segment polygon": ["render", "poly20000.svg", "-o", "p2.png"],
-        "render 199,000-segment polygon": ["render", "poly199000.svg", "-o", "p3.png"],
-        "render 4,900 rectangles": ["render", "rects4900.svg", "-o", "r.png"],
-        "render clip-path": ["render", "clip.svg", "-o", "c.png"],
-        "render visibility hidden": ["render", "hidden.svg", "-o", "h.png"],
-        "eval on a folder holding dasharray 0.001": ["eval", "--data", "evaldata", "-o", "e.json"],
-        "train on 1 image": ["train", "train1", "--config", "c.json", "--out", "run1", "--device", "cpu"],
-        "train on 2 images": ["train", "train2", "--config", "c.json", "--out", "run2", "--device", "cpu"],
-        "train onto the finished run": ["train", "train2", "--config", "c.json", "--out", "run2", "--device", "cpu"],
-        "export onto a model folder": ["export", "run2", "-o", "run2/model"],
-        "fit-prior without -o": ["fit-prior", "train2", "--model", "run2/model"],
-        "./fonts beside the default model": ["vectorize", "g.png", "-o", "f.svg", "--no-refine"],
-        "- mixed with files": ["vectorize", "-", "g.png", "-o", "mixed"],
-        "sample -o -": ["sample", "-o", "-"],
-    }
+    return CASES
 
 
 def main() -> None:

@@ -72,7 +72,7 @@ def real_files(out: Path) -> list[Path]:
 
 def made_files(out: Path, src: Path) -> list[Path]:
     """bench/realworld.py's made pictures of at most ``MAX_SIDE`` px, as the files it feeds the tools."""
-    from realworld import make_sets
+    from realworld_sets import make_sets
 
     out.mkdir(parents=True, exist_ok=True)
     paths = []

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import shlex
 import subprocess
 import sys
@@ -59,13 +60,19 @@ def _command(name: str, args: list[str]) -> tuple[Path, list[str], str]:
 
 
 def _earlier(name: str, args: list[str]) -> dict | None:
-    """The result an earlier run of exactly this command left in docs/results/, if any."""
+    """The result an earlier run of this command left in docs/results/, if any: the same command but
+    for where its datasets were (``--data`` / ``--train-data`` folders compared by their last name)."""
     out, _, shown = _command(name, args)
     if out.is_file():
         res = json.loads(out.read_text())
-        if res.get("command") == shown:
+        if _placed(res.get("command", "")) == _placed(shown):
             return res
     return None
+
+
+def _placed(command: str) -> str:
+    """``command`` with each dataset folder reduced to its name (``--data /work/data/fonts`` -> ``--data fonts``)."""
+    return re.sub(r"(--(?:train-)?data) \S*?([^/\s]+)(?=\s|$)", r"\1 \2", command)
 
 
 def run_eval(name: str, args: list[str], earlier: dict | None = None) -> dict:
@@ -100,6 +107,8 @@ def main():
     OUT.mkdir(parents=True, exist_ok=True)
     results, samples, sweeps, skipped = {}, {}, {}, []
     todo = plan(args, results, samples, sweeps, skipped)
+    if not any(table is results for table, *_ in todo):
+        sys.exit(f"make_results: no eval to run or reuse (datasets under {args.data}? {'; '.join(skipped)})")
     with ThreadPoolExecutor(max(1, args.jobs)) as pool:  # threads: each eval is its own process
         done = list(pool.map(lambda t: run_eval(*t[3:]), todo))
     for (table, label, model, *_), res in zip(todo, done):

@@ -244,12 +244,12 @@ def _sweeps(sweeps, args) -> list[str]:
 
 
 def _fonts_ablation() -> list[str]:
-    """The table of ``bench/fonts_ablation.py`` (docs/results/fonts-ablation.md), when it was run."""
+    """The table of ``bench/research/fonts_ablation.py`` (docs/results/fonts-ablation.md), when it was run."""
     table = OUT / "fonts-ablation.md"
     if not table.is_file():
         return []
     return ["", "## Fonts: where the vector model's error comes from (one factor at a time)", "",
-            "`python bench/fonts_ablation.py --steps 150 --markdown docs/results/fonts-ablation.md` (its docstring",
+            "`python bench/research/fonts_ablation.py --steps 150 --markdown docs/results/fonts-ablation.md` (its docstring",
             "defines each row): the shipped `fonts` model's output with one stage after another replaced by a",
             "per-glyph optimisation through our renderer, scored like Table 1.", "", table.read_text().rstrip()]
 

@@ -104,7 +104,7 @@ def test_a_path_inside_the_ink_costs_nothing_a_missed_part_costs_its_distance():
     dot = target[:, :1] + torch.tensor([0.1, 0.0])  # one more outline point 0.1 beyond the path at (0.8, 0.5)
     with_dot = torch.cat([target, dot], dim=1)  # (1, 33, 2)
     assert outline_loss(outer[None, None], with_dot, valid, S).item() == pytest.approx((0.1 * S) ** 2 / 33, rel=1e-3)
-    d2 = outline_distances(outer[None, None], with_dot, S)  # (1, 33): per point, what bench/outline_reach reads
+    d2 = outline_distances(outer[None, None], with_dot, S)  # (1, 33): per point, what bench/research/outline_reach reads
     assert d2.shape == (1, 33) and d2[0, :32].max().item() < 1e-6
     assert d2[0, 32].item() == pytest.approx((0.1 * S) ** 2, rel=1e-3)
 

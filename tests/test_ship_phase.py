@@ -4,16 +4,8 @@ phases shipped must not count that phase's steps and minutes twice; and what shi
 import json
 
 import pytest
-from bench.ship_phase import (
-    _minutes,
-    _steps,
-    card_section,
-    phase_span,
-    ship,
-    training_with,
-    with_config,
-    with_path_passes,
-)
+from bench.phase_card import _minutes, _steps, card_section, phase_span, training_with
+from bench.ship_phase import ship, with_config, with_path_passes
 
 
 def _run(first_time: float, steps: range) -> list[dict]:

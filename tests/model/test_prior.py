@@ -126,7 +126,7 @@ def test_a_model_with_a_stored_prior_samples_from_it(prior_model, tmp_path):
 
 
 def test_the_prior_stores_the_temperature_sample_draws_with(prior_model, tmp_path):
-    """``LatentPriorConfig.temperature`` (bench/prior_temperature.py writes it) is what ``sample``
+    """``LatentPriorConfig.temperature`` (bench/research/prior_temperature.py writes it) is what ``sample``
     and ``prior_latents`` draw with unless told; N(0, I) keeps 1; a bad one is refused on load."""
     import dataclasses
 

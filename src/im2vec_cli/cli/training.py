@@ -228,7 +228,7 @@ def export(run_dir, output, half, overwrite):
                    "the images]")
 @click.option("--shrink", type=click.FloatRange(0, 10), default=DEFAULT_SHRINK, show_default=True,
               help="Added to each Gaussian's variances, in units of the latents' mean variance: larger spreads each "
-                   "over pictures like its own (see bench/prior_components.py).")
+                   "over pictures like its own (see bench/research/prior_components.py).")
 @click.option("--neighbours", type=click.IntRange(0, 64), default=None,
               help=f"Also keep the latents of (up to 4096 of) the images, each with this many nearest others, "
                    f"for `sample --prior neighbours` (0: none) [default: {DEFAULT_NEIGHBOURS}, fewer for a small set].")

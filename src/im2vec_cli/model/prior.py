@@ -14,7 +14,7 @@ trained, and stored beside the weights:
 ``temperature`` scales every component's standard deviation (T = 1: the fitted density;
 T = 0: the component means), as it scales N(0, I) for ``prior="normal"``. A prior stores the
 temperature ``sample`` uses by default (``LatentPriorConfig.temperature``: 1 as fitted; a lower
-one chosen on the validation split by ``bench/prior_temperature.py`` trades recall for precision,
+one chosen on the validation split by ``bench/research/prior_temperature.py`` trades recall for precision,
 the truncation of Brock et al. 2019).
 
 The training latents lie on thin sheets, and a mixture's draws fall between them, where the
@@ -154,7 +154,7 @@ def fit_prior(latents: torch.Tensor, components: int = DEFAULT_COMPONENTS, *, se
     ``GaussianMixture``, k-means++ start); ``shrink`` is added to every covariance's diagonal, in
     units of the latents' mean variance, so a component on few points stays well-conditioned
     (and, larger, spreads to the latents of pictures like its own: chosen on the validation
-    split by ``bench/prior_components.py``)."""
+    split by ``bench/research/prior_components.py``)."""
     from sklearn.mixture import GaussianMixture
 
     if latents.dim() != 2:

@@ -12,7 +12,7 @@ outline (``outline_points``, 256 points) against points sampled on those paths:
 - **pictures missing a part**: the share of pictures with more than 10% of their outline missed;
 - **L2**: the per-picture MSE of the soft render (``tau`` 0.3, 2x2 supersampled) against the picture.
 
-    python bench/outline_reach.py models/icons runs/icons-outline/model --data DATA/icons [--limit 500] [--markdown F]
+    python bench/research/outline_reach.py models/icons runs/icons-outline/model --data DATA/icons [--limit 500] [--markdown F]
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ import numpy as np
 import torch
 from PIL import Image
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "src"))
 
 from im2vec_cli.evaluate import eval_files  # noqa: E402

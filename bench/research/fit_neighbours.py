@@ -11,7 +11,7 @@ images; the k with the best F1 is measured once on the test split beside the mix
 ``--write`` stored in MODEL (latent_neighbours.safetensors and .json). A set without a feature
 net (emoji, icons) takes the first k given.
 
-    python bench/fit_neighbours.py --model models/fonts --data DATA/fonts [--neighbours 1,3,8] [--write]
+    python bench/research/fit_neighbours.py --model models/fonts --data DATA/fonts [--neighbours 1,3,8] [--write]
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "src"))
 
 from im2vec_cli.api import load_feature_net  # noqa: E402

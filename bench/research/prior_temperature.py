@@ -11,7 +11,7 @@ precision and recall. That T is then measured once on the test split beside T = 
 ``--write`` it is stored in MODEL/latent_prior.json (``LatentPriorConfig.temperature``), which
 `sample` then draws with unless told.
 
-    python bench/prior_temperature.py --model models/fonts --data DATA/fonts [--write]
+    python bench/research/prior_temperature.py --model models/fonts --data DATA/fonts [--write]
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "src"))
 
 from im2vec_cli.api import load_feature_net  # noqa: E402

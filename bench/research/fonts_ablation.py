@@ -16,7 +16,7 @@ the cairosvg render of the SVG against the input), one factor at a time, from th
 Also the MSE that the training loss sees (our soft render at the training tau) beside the
 cairosvg one, for the soft edge. Prints a Markdown table; ``--markdown FILE`` writes it too.
 
-    python bench/fonts_ablation.py [--images tests/assets/fonts_test] [--steps 150]
+    python bench/research/fonts_ablation.py [--images tests/assets/fonts_test] [--steps 150]
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ from im2vec_cli.model.vae import Decoded
 from im2vec_cli.raster.bezier import subdivide_to
 from im2vec_cli.vector import rasterize_svg, to_svg
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def svg_mse(model, dec: Decoded, images: torch.Tensor, places) -> list[float]:
@@ -86,22 +86,13 @@ def main():
     ap.add_argument("--json", default=None)
     args = ap.parse_args()
     torch.manual_seed(0)
-    model = from_pretrained(args.model).float().eval()
-    for p in model.parameters():
-        p.requires_grad_(False)
-    files = list_images(args.images)[: args.limit]
-    imgs = [load_image(f) for f in files]
-    pairs = [model_input(model, im) for im in imgs]
-    x = torch.stack([p[0] for p in pairs])  # (B, 3, S, S) model input
-    places = [p[1] for p in pairs]
-    target = torch.stack(imgs)  # (B, 3, H, W) inputs at their own size
-    tau = 0.3
+    model, files, x, places, target = setup(args.model, args.images, args.limit)
     rows = []
 
     def row(name, dec, t0, note=""):
         errs = svg_mse(model, dec, target, places)
         rows.append({"row": name, "recon_l2": float(np.mean(errs)), "stderr": float(np.std(errs) / np.sqrt(len(errs))),
-                     "soft_mse": soft_mse(model, dec, x, tau), "seconds": time.perf_counter() - t0, "note": note})
+                     "soft_mse": soft_mse(model, dec, x, 0.3), "seconds": time.perf_counter() - t0, "note": note})
         print(json.dumps(rows[-1]), flush=True)
 
     with torch.no_grad():
@@ -141,22 +132,43 @@ def main():
         points_row(pts, "nonzero", "overlaps filled instead of cut")
 
     if args.baseline and Path(args.baseline).is_dir():
-        ivae = from_pretrained(args.baseline).float().eval()
-        with torch.no_grad():
-            rec = ivae.decode(ivae.encode(x)[0]).clamp(0, 1)
-        errs = ((rec - x) ** 2).mean(dim=(1, 2, 3))
-        rows.append({"row": "ImageVAE baseline (raster)", "recon_l2": float(errs.mean()),
-                     "stderr": float(errs.std() / np.sqrt(len(errs))), "soft_mse": float("nan"), "seconds": 0.0,
-                     "note": "its raster output"})
+        rows.append(baseline_row(args.baseline, x))
+    write(rows, args, len(files))
+
+
+def baseline_row(folder: str, x: torch.Tensor) -> dict:
+    """The ImageVAE's row: its raster output's MSE on the model inputs ``x (B, 3, S, S)``."""
+    ivae = from_pretrained(folder).float().eval()
+    with torch.no_grad():
+        rec = ivae.decode(ivae.encode(x)[0]).clamp(0, 1)
+    errs = ((rec - x) ** 2).mean(dim=(1, 2, 3))
+    return {"row": "ImageVAE baseline (raster)", "recon_l2": float(errs.mean()),
+            "stderr": float(errs.std() / np.sqrt(len(errs))), "soft_mse": float("nan"), "seconds": 0.0,
+            "note": "its raster output"}
+
+
+def write(rows: list[dict], args, n: int) -> None:
+    """The table printed, and written to ``--markdown`` / ``--json`` when given."""
     where = Path(args.images).resolve()
     where = where.relative_to(ROOT) if where.is_relative_to(ROOT) else where
-    head = f"{len(files)} glyphs from {where}; model {args.model}; {args.steps} Adam steps per optimised row."
-    text = table(rows, head)
+    text = table(rows, f"{n} glyphs from {where}; model {args.model}; {args.steps} Adam steps per optimised row.")
     print(text)
     if args.markdown:
         Path(args.markdown).write_text(text)
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=1) + "\n")
+
+
+def setup(name: str, images: str, limit: int | None):
+    """The model, frozen, and the glyphs: (model, files, model inputs ``(B, 3, S, S)``, their places,
+    the pictures at their own size ``(B, 3, H, W)``)."""
+    model = from_pretrained(name).float().eval()
+    for p in model.parameters():
+        p.requires_grad_(False)
+    files = list_images(images)[:limit]
+    imgs = [load_image(f) for f in files]
+    pairs = [model_input(model, im) for im in imgs]
+    return model, files, torch.stack([p[0] for p in pairs]), [p[1] for p in pairs], torch.stack(imgs)
 
 
 def table(rows: list[dict], head: str) -> str:

@@ -16,7 +16,7 @@ generation L2 (RESULTS.md Table 2), are no worse than the stored prior's: a held
 measures the density, not what its draws look like (on the feedback models' latents both sets'
 picks were declined for that: models/emoji/README.md, models/icons/README.md).
 
-    python bench/prior_components.py --model models/emoji --data DATA/emoji [--markdown F]
+    python bench/research/prior_components.py --model models/emoji --data DATA/emoji [--markdown F]
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "src"))
 
 from im2vec_cli.data.folder import load_folder, split_dir  # noqa: E402
@@ -57,7 +57,7 @@ def main():
     t0 = time.perf_counter()
     train, val, test = (latents(model, data, s) for s in ("train", "val", "test"))
     lines = [f"# Latent prior components: {Path(args.model).name}", "",
-             f"`python bench/prior_components.py --model {args.model} --data {args.data}` "
+             f"`python bench/research/prior_components.py --model {args.model} --data {args.data}` "
              f"({len(train)} training, {len(val)} validation, {len(test)} test latents; encoded in "
              f"{time.perf_counter() - t0:.0f} s). Mean log-likelihood in nats per latent "
              f"({train.shape[1]} dimensions); higher is better.", "",

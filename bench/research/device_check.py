@@ -8,10 +8,10 @@ picture on each device and how alike the two results are: the IoU of their rende
 (our renderer, on the CPU; the pixels that are not white), or the latents' relative
 distance. A failure prints its one line (and traceback) and the check goes on.
 
-    python bench/device_check.py --models DIR... --assets DIR... [--images 16] [--device cuda]
+    python bench/research/device_check.py --models DIR... --assets DIR... [--images 16] [--device cuda]
 
 On the lent machine it reads what ``pack`` put in .gpu/ (bench/device_phases.py says how the
-tree travels): ``python3 bench/device_check.py --pack``.
+tree travels): ``python3 bench/research/device_check.py --pack``.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ import time
 import traceback
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "src"))
 PACK = ROOT / ".gpu" / "check"
 
