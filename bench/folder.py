@@ -98,15 +98,22 @@ from pathlib import Path
 from im2vec_cli.files import load_image
 from im2vec_cli.model.pretrained import from_pretrained
 from im2vec_cli.raster import set_compile
-from im2vec_cli.refine import EFFORTS, refine
+from im2vec_cli.refine import refine
 from im2vec_cli.vector import to_svg
+try:  # the fast effort, as this checkout names it
+    from im2vec_cli.options import effort_plan
+    fast = (effort_plan("fast"),)
+except ImportError:  # before the run's Plan (issue 67)
+    from im2vec_cli.refine import EFFORTS
+    fast = ()
+    refine = lambda m, im, r=refine: r(m, im, settings=EFFORTS["fast"])
 set_compile(False)  # as the API runs one image
 m = from_pretrained({model!r}, torch.device("cpu"))
 files = sorted(Path({str(pngs)!r}).glob("*.png"))
 imgs = [load_image(f) for f in files]
-refine(m, imgs[0], settings=EFFORTS["fast"])  # warm-up
+refine(m, imgs[0], *fast)  # warm-up
 t = time.perf_counter()
-svgs = [to_svg(refine(m, im, settings=EFFORTS["fast"])[0]) for im in imgs]
+svgs = [to_svg(refine(m, im, *fast)[0]) for im in imgs]
 ms = 1e3 * (time.perf_counter() - t) / len(imgs)
 for f, s in zip(files, svgs):
     (Path({str(out)!r}) / (f.stem + ".svg")).write_text(s)

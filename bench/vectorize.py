@@ -48,8 +48,9 @@ from im2vec_cli.evaluate import outline_iou, svg_mask  # noqa: E402
 from im2vec_cli.files import load_image  # noqa: E402
 from im2vec_cli.infer import vectorize  # noqa: E402
 from im2vec_cli.model.pretrained import from_pretrained  # noqa: E402
+from im2vec_cli.options import Plan, effort_plan  # noqa: E402
 from im2vec_cli.raster import set_compile  # noqa: E402
-from im2vec_cli.refine import EFFORTS, RefineSettings, refine  # noqa: E402
+from im2vec_cli.refine import refine  # noqa: E402
 from im2vec_cli.vector import rasterize_svg, to_svg  # noqa: E402
 
 SIZE, UP = 64, 4
@@ -257,16 +258,15 @@ def _tools(model, glyphs, args) -> dict:
         return to_svg(vectorize(model, [images[g["name"]]], clean=True, **opts)[0])
 
     def refined(g):  # the model's own parts: bench/outlines.py measures the clean outlines (the default)
-        return to_svg(refine(model, images[g["name"]], settings=EFFORTS["best"], parts="model", **opts)[0])
+        return to_svg(refine(model, images[g["name"]], effort_plan("best", parts="model", **opts))[0])
 
     def refined_fast(g):
-        return to_svg(refine(model, images[g["name"]], settings=EFFORTS["fast"], parts="model", **opts)[0])
+        return to_svg(refine(model, images[g["name"]], effort_plan("fast", parts="model", **opts))[0])
 
-    compact = RefineSettings(simplify_tol=COMPACT["simplify"])
+    compact = Plan(simplify_tol=COMPACT["simplify"], parts="model", segments="auto", quality=COMPACT["quality"])
 
     def refined_compact(g):
-        return to_svg(refine(model, images[g["name"]], segments="auto", quality=COMPACT["quality"],
-                             settings=compact, parts="model")[0])
+        return to_svg(refine(model, images[g["name"]], compact)[0])
 
     tools = {
         "im2vec amortised": amortised,

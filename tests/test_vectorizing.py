@@ -73,11 +73,12 @@ def test_a_small_picture_loads_the_model_a_large_one_does_not(tmp_path):
 def test_the_traced_way_gives_what_refinement_gives(tmp_path):
     """A picture traced alone (``trace.trace_alone``) gets the SVG that refinement's own batch
     (``refine.refine_batch``, the renderer at hand) gives it: the two ways are one pipeline."""
-    from im2vec_cli.refine import EFFORTS, refine_batch
+    from im2vec_cli.options import effort_plan
+    from im2vec_cli.refine import refine_batch
 
     pic = np.asarray(Image.open(logo(tmp_path / "l.png", 160)), dtype=np.float32) / 255
     fonts = api.load_model("fonts", "cpu")
-    (ref, info), = refine_batch(fonts, [to_tensor(pic)], settings=EFFORTS["fast"])
+    (ref, info), = refine_batch(fonts, [to_tensor(pic)], effort_plan("fast"))
     assert info["kind"] and info["loss_end"] is None  # not polished: larger than the polish's size
     assert api.vectorize(pic, api.ModelRef(load=lambda: 1 / 0)).to_svg() == ref.to_svg()
 

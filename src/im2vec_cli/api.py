@@ -169,7 +169,7 @@ def train(data_dir, run_dir="runs/latest", model_config=None, train_config=None,
     from .checkpoint import resumed_configs
     from .config import ModelConfig, TrainConfig
     from .model.pretrained import grow_state
-    from .options import GROWABLE
+    from .options import GROWABLE, fixed_on_init
     from .runtime import resolve_device
     from .train import train as run_train
 
@@ -183,7 +183,7 @@ def train(data_dir, run_dir="runs/latest", model_config=None, train_config=None,
         mcfg = ModelConfig.from_dict(given)
     else:
         start = _model(init).cpu()
-        fixed = sorted(k for k in given if k not in GROWABLE and given[k] != start.config.to_dict().get(k))
+        fixed = fixed_on_init(given, start.config.to_dict())
         if fixed:
             raise ValueError(f"init takes the model's config (but {', '.join(GROWABLE)}); drop {', '.join(fixed)}")
         mcfg = ModelConfig.from_dict({**start.config.to_dict(), **given})

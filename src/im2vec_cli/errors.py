@@ -33,6 +33,10 @@ class VectorizeError(Im2VecError):
     """One picture's pipeline failed (any exception inside it); the others of its batch go on."""
 
 
+class OptionWarning(UserWarning):
+    """An option was set that does nothing in the mode chosen (``VectorizeOptions.idle``)."""
+
+
 def describe(exc: BaseException) -> str:
     """One line for an exception the library did not raise on purpose (a dependency's error,
     memory running out): its own message for an ``Im2VecError``, else what happened and the

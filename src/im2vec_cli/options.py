@@ -1,8 +1,10 @@
 """The options of the pipelines and their choice lists, written down once.
 
 Torch-free, so that the CLI imports them for ``--help`` without starting torch. The
-pipelines import their choices from here; ``VectorizeOptions`` is validated once, where it
-is made, and passed whole: CLI -> ``api.vectorize`` -> ``parallel`` -> the pipeline.
+pipelines import their choices from here. ``VectorizeOptions`` (what the user chose) is
+validated once, where it is made; ``VectorizeOptions.resolve()`` turns it into one ``Plan``
+(every setting of the run, each default written once, here) that every stage reads from:
+CLI -> ``VectorizeOptions`` -> ``Plan`` -> ``trace`` / ``refine`` -> the function that acts.
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ from dataclasses import dataclass
 from .errors import ConfigError
 
 PARTS = ("clean", "model")  # `vectorize --parts`: clean outlines (default) or the model's own paths
-EFFORTS = ("draft", "fast", "best")  # `vectorize --effort`: refine.EFFORTS holds the settings of each
+EFFORTS = ("draft", "fast", "best")  # `vectorize --effort`: EFFORT_SETTINGS holds the settings of each
 PRESETS = ("auto", "scan", "logo", "line", "pixel", "photo")  # `vectorize --preset`: the kinds of trace.read
 PRIORS = ("auto", "neighbours", "fitted", "normal")  # `sample --prior`: auto is the first of the others the model has
 GROUPINGS = ("evenodd", "nonzero", "layers")  # ModelConfig.grouping: how paths make shapes
@@ -44,6 +46,89 @@ WORK_BYTES_PER_PIXEL = 256  # tracing and polishing, per pixel of the copy worke
 # 1.3 GB peak for a 2048^2 gradient of 16 colours)
 MAX_SPECKLE = 1000  # `vectorize --filter-speckle`: px a side at most
 MAX_WORK_PIXELS = 2048 * 2048  # the largest copy worked on, whatever the budget: 2048 px resolve any outline
+
+
+@dataclass(frozen=True)
+class Plan:
+    """Every setting of one ``vectorize`` run, resolved (``VectorizeOptions.resolve``): the user's
+    choices, and the settings of the effort they chose (``EFFORT_SETTINGS``; ``Plan()`` itself is the
+    most thorough refinement). The stages read what they need from it: ``trace`` the outline
+    fields, ``refine`` the optimisation's."""
+
+    # what to make (``VectorizeOptions`` describes each)
+    refine: bool = True
+    parts: str = "clean"
+    colors: int | None = None  # a multi-colour picture's palette size (None: as its flat areas need, <= 16)
+    max_paths: int | None = None
+    segments: int | str | None = None  # per path (None: the model's; "auto": its segment predictor)
+    quality: float | None = None
+    compile: bool = False
+    preset: str | None = None  # the kind of picture (None: the kind it looks like, ``trace.read``)
+    speckle: int | None = None  # px (None: by the picture's size, ``trace.read``)
+    work_pixels: int = MAX_WORK_PIXELS  # a larger picture is vectorized at an area-averaged copy this large
+    # the optimisation (``refine``)
+    latent_steps: int = 10
+    point_steps: int = 50
+    latent_lr: float = 0.05
+    point_lr: float = 1.5e-3  # normalised units per Adam step (0.1 px on a 64 px image)
+    color_lr: float = 0.02
+    tau_start: float = 0.8  # edge softness in input pixels, annealed during the point stage...
+    tau_end: float = 0.3  # ...to about a box filter's slope, which is what cairo and the input show
+    levels: int = 1  # the full-resolution L2 only. Coarse levels rendered sharp against a blurred target
+    # pulled the outline off the edges (IoU@4x 0.921 with 3 levels vs 0.972 with 1, bench/vectorize.py); the
+    # blurred pyramid (render_pyramid's default) neither helps nor hurts (0.9888 vs 0.9891, 12 fonts test glyphs)
+    max_side: int = 128  # larger inputs are fitted at this size (then scaled back: the frame is normalised);
+    # a clean outline of a larger picture is not polished: fitted within tolerance of the full-size picture,
+    # it is finer than a pixel at this size (on 400-600 px pictures polishing made things worse: MSE 0.00056
+    # polished against 0.00036 not on logos, 0.00131 against 0.00071 on scans, bench/realworld.py)
+    patience: int = 12  # stop when the loss has not improved by min_improvement in this many steps
+    min_improvement: float = 2e-3
+    margin: float = 0.02  # control points may leave the canvas by this much (normalised) before a penalty
+    bounds_weight: float = 10.0
+    min_segment_px: float = 0.5  # segments shorter than this are pushed apart (collapsed-segment guard)
+    collapse_weight: float = 1e-3
+    prune_tol: float = 0.01  # drop a path whose removal raises the loss by less than this fraction
+    simplify_tol: float = 0.25  # after fitting, merge segments while the outline moves less than this (input px)
+    polish_steps: int = 40  # points-only steps after simplifying
+    polish_samples: int = 12  # lines per cubic in the polish: merged segments are long, and too coarse a
+    # polygon lets the fit bend the true curve away from the edge (IoU@4x 0.972 with the model's 4)
+    # clean outlines (``trace.clean_outlines``)
+    tolerance: float = 0.5  # cubics fitted within this many input px of the traced/united ring
+    outline_steps: int = 40  # points (and colours) polished against the input (0: not polished)...
+    outline_tau: float = 0.3  # ...from this edge softness, annealed to tau_end
+    split_error: float = 0.01  # then segments along which the render is still this wrong (MSE) are halved and
+    # the polish repeated (0: never)
+    max_segments: int = 200  # per contour, splitting stops here
+    polish_segments: int = 4000  # an outline of more segments is not polished: each step would render them all,
+    # at the fit size (128 px) where a picture of that many is finer than a pixel; it is fitted within tolerance
+    model_start: bool = True  # clean outlines of a two-tone image: also start from the model's paths (redrawn
+    # clean), keep the better start. On 40 held-out glyphs and 40 icons it changed IoU@4x by -0.0005 and 0.0000
+    # at twice the time (bench/outlines.py), so the fast effort traces the image alone
+
+    @property
+    def polish(self) -> bool:
+        """Whether clean outlines are polished through the renderer at all (not ``--effort draft``)."""
+        return self.outline_steps > 0
+
+
+# Named efforts (`vectorize --effort`): each ``Plan``'s fields that differ from ``Plan()``.
+# "best" is ``Plan()`` with a finer split; "fast" takes about a third of the steps and a coarser
+# polish polygon: on 62 held-out Liberation Sans Narrow glyphs at 64 px (fonts model) IoU@4x
+# 0.9855 and MSE 0.00051 in 0.26 s per glyph, against 0.9913, 0.00022 and 0.79 s (on all 248
+# glyphs, `make bench-vectorize`: 0.9867 / 0.00036 in 0.44 s against 0.9914 / 0.00018 in 1.01 s;
+# potrace 0.9524 / 0.00283), so that one `vectorize` fits in about 2 s with torch's import.
+EFFORT_SETTINGS = {  # in the order of EFFORTS
+    "draft": {"latent_steps": 0, "point_steps": 0, "polish_steps": 0, "outline_steps": 0, "split_error": 0.0,
+              "model_start": False},  # clean outlines traced and fitted, not polished
+    "fast": {"latent_steps": 5, "point_steps": 25, "polish_steps": 15, "polish_samples": 8, "outline_steps": 25,
+             "model_start": False},
+    "best": {"split_error": 0.005},
+}
+
+
+def effort_plan(effort: str, **fields) -> Plan:
+    """The ``Plan`` of a named effort (``EFFORTS``), with ``fields`` set too."""
+    return Plan(**{**EFFORT_SETTINGS[effort], **fields})
 
 
 @dataclass(frozen=True)
@@ -134,6 +219,43 @@ class VectorizeOptions:
     def max_input_pixels(self) -> int:
         """The most pixels a picture may have to be read within the memory budget."""
         return ((self.max_memory or MEMORY_DEFAULT) - BASE_BYTES) // READ_BYTES_PER_PIXEL
+
+    def resolve(self) -> Plan:
+        """The run's ``Plan``: the effort's settings with these choices applied (a ``tolerance`` or
+        ``simplify_px`` given replaces the effort's; without refinement nothing is simplified
+        unless ``simplify_px`` says so)."""
+        fields = dict(EFFORT_SETTINGS[self.effort])
+        if self.tolerance is not None:
+            fields["tolerance"] = float(self.tolerance)
+        if self.simplify_px is not None or not self.refine:
+            fields["simplify_tol"] = float(self.simplify_px or 0.0)
+        return Plan(refine=self.refine, parts=self.parts, colors=self.colors, max_paths=self.max_paths,
+                    segments=self.segments, quality=self.quality, compile=self.compile,
+                    preset=None if self.preset == "auto" else self.preset, speckle=self.speckle,
+                    work_pixels=self.work_pixels(), **fields)
+
+    def idle(self, given: set[str]) -> list[str]:
+        """Of the fields named in ``given`` (those the user set), a note for each that does nothing
+        in the mode chosen (``IDLE``): ``"tolerance does nothing here: ..."``."""
+        return [f"{name} does nothing here: {why}" for name, (acts, why) in IDLE.items()
+                if name in given and not acts(self)]
+
+
+# field -> (when it acts, given the options; when it does not, why): a field set that does nothing in
+# the mode chosen gets a note (the API warns, the CLI prints it), not silence
+_CLEAN_REFINED = (lambda o: o.refine and o.parts == "clean", "it shapes clean parts with refinement")
+IDLE = {
+    "tolerance": _CLEAN_REFINED, "colors": _CLEAN_REFINED, "preset": _CLEAN_REFINED, "speckle": _CLEAN_REFINED,
+    "effort": (lambda o: o.refine, "it sets how hard refinement works, and without refinement there is none"),
+    "compile": (lambda o: o.refine, "it compiles the refinement, and without refinement there is none"),
+    "quality": (lambda o: o.segments == "auto", "it sets segments='auto''s choice"),
+}
+
+
+def fixed_on_init(given: dict, start: dict) -> list[str]:
+    """The model fields of ``given`` that a fine-tune (``train --init``) cannot change: those not
+    ``GROWABLE`` whose value differs from the starting model's config ``start`` (sorted)."""
+    return sorted(k for k in given if k not in GROWABLE and given[k] != start.get(k))
 
 
 def _integer(x) -> bool:

@@ -14,10 +14,12 @@ from __future__ import annotations
 import collections
 import multiprocessing
 import signal
+import warnings
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 
+from .errors import OptionWarning
 from .events import WorkerDied
 from .options import VectorizeOptions
 
@@ -28,6 +30,7 @@ TRACE_IMPORTS = ["scipy.ndimage", "scipy.cluster.vq", "contourpy", "pathops", "s
 
 def _init(model_ref: str, device: str, seed: int, threads: int, options: VectorizeOptions | None) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and ends the pool
+    warnings.simplefilter("ignore", OptionWarning)  # said once, by vectorize_chunks in the parent
 
     from .runtime import seed_everything, set_threads
     from .vectorizing import ModelRef
@@ -65,6 +68,10 @@ def vectorize_chunks(chunks: Iterable[list], model_ref: str, *, jobs: int, threa
         from .runtime import free_cores
 
         threads = max(1, free_cores() // jobs)
+    if options is not None:
+        from .vectorizing import set_fields, warn_idle
+
+        warn_idle(options, set_fields(options))  # once here: the workers keep quiet
     args = (model_ref, device, seed, threads, options)
     preload = ["im2vec_cli.api", *TRACE_IMPORTS] + (["im2vec_cli.refine.batch", "im2vec_cli.infer"] if model else [])
     pool, spare = _Pool(jobs, args, preload), _Pool(1, args, preload)
@@ -171,10 +178,8 @@ def plan(options: VectorizeOptions, sides: list[tuple[int, int] | None], count: 
     in sixteen chunks or more, for the workers to share evenly. The chunks never depend on the
     workers, so ``-j`` changes no SVG. ``sides``: the ``(W, H)`` of some of them (``None`` where
     unknown)."""
-    from .refine.settings import EFFORTS
-
-    s = EFFORTS[options.effort]
-    side = (s.max_side if s.outline_steps > 0 else 0) if options.refine and options.parts == "clean" else None
+    s = options.resolve()
+    side = (s.max_side if s.polish else 0) if s.refine and s.parts == "clean" else None
     batched = not options.refine and options.parts == "model"  # one forward pass: a pool only slows it down
     known = [sz or (512, 512) for sz in sides] or [(512, 512)]  # a size unknown: a 512 px picture's
     needs = [side is None or max(sz) <= side for sz in known]  # which need the model

@@ -97,7 +97,7 @@ def intra_op_threads(pictures: int, jobs: int = 1, free: int | None = None) -> i
     ``free`` cores (default ``free_cores()``; take it before torch has run anything, as its
     idle threads spin for a while and count as busy).
 
-    One picture gets one thread: its renders are at most ``RefineSettings.max_side`` px, too
+    One picture gets one thread: its renders are at most ``options.Plan.max_side`` px, too
     small to share, and a second thread's spin-waits at every op cost 4x when another program
     holds the other core (bench/cli.py). Several share the free cores among the jobs, so
     that no more threads run than there are cores to run them.

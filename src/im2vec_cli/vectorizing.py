@@ -12,17 +12,17 @@ with its notes. ``--parts model`` and ``--no-refine`` always use the model. Re-e
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from collections.abc import Callable
 
 import numpy as np
 
 from . import trace
 from .config import DEFAULT_MODEL, check_model_folder, resolve_model
-from .errors import ModelError, VectorizeError, describe
+from .errors import ModelError, OptionWarning, VectorizeError, describe
 from .events import Event, Stage
 from .files import as_picture, to_tensor
-from .options import VectorizeOptions
-from .refine.settings import EFFORTS
+from .options import Plan, VectorizeOptions
 from .runtime import check_device
 from .vector import VectorImage
 
@@ -79,45 +79,57 @@ def vectorize(images, model=DEFAULT_MODEL, options: VectorizeOptions | None = No
         One ``VectorImage`` per picture (a list for a list), in each picture's pixel frame.
     """
     o = dataclasses.replace(options or VectorizeOptions(), **fields)  # validated here, once
+    warn_idle(o, set(fields) | set_fields(options))
+    plan = o.resolve()
     model = ModelRef(model) if isinstance(model, str) else model
     one = not isinstance(images, (list, tuple))
     pictures = [as_picture(x) for x in ([images] if one else images)]
-    check_segments(model, o.segments)
-    if o.refine:
-        out = _refined(model, pictures, o, on_event)
-    else:
-        model = model_of(model)  # (torch's import with it)
-        from . import infer
-        from .raster import compiling
-
-        kw = {"segments": o.segments, "quality": o.quality, "max_paths": o.max_paths, "clean": o.parts == "clean"}
-        with compiling(o.compile):  # compiling the passes cost 6-16 s a process for 0.15 s of work
-            out = infer.vectorize(model, [to_tensor(p) for p in pictures], **kw)
-            out = [trace.simplify(v, o.simplify_px or 0.0) for v in out]
+    check_segments(model, plan.segments)
+    out = _refined(model, pictures, plan, on_event) if plan.refine else _guessed(model, pictures, plan)
     return out[0] if one else out
 
 
-def _refined(model, pictures: list[np.ndarray], o: VectorizeOptions, on_event=None) -> list[VectorImage]:
+def set_fields(options: VectorizeOptions | None) -> set[str]:
+    """The fields of ``options`` that differ from their defaults (those the caller set)."""
+    if options is None:
+        return set()
+    default = VectorizeOptions()
+    return {f.name for f in dataclasses.fields(options) if getattr(options, f.name) != getattr(default, f.name)}
+
+
+def warn_idle(options: VectorizeOptions, given: set[str]) -> None:
+    """An ``errors.OptionWarning`` for each field of ``given`` that does nothing with these options
+    (``VectorizeOptions.idle``): the same notes the CLI prints."""
+    for note in options.idle(given):
+        warnings.warn(note, OptionWarning, stacklevel=3)
+
+
+def _guessed(model, pictures: list[np.ndarray], plan: Plan) -> list[VectorImage]:
+    """``vectorize`` without refinement: the model's guess, in one batch (torch and the model loaded)."""
+    model = model_of(model)
+    from . import infer
+    from .raster import compiling
+
+    kw = {"segments": plan.segments, "quality": plan.quality, "max_paths": plan.max_paths, "clean": plan.parts == "clean"}
+    with compiling(plan.compile):  # compiling the passes cost 6-16 s a process for 0.15 s of work
+        out = infer.vectorize(model, [to_tensor(p) for p in pictures], **kw)
+    return [trace.simplify(v, plan.simplify_tol) for v in out]
+
+
+def _refined(model, pictures: list[np.ndarray], plan: Plan, on_event=None) -> list[VectorImage]:
     """``vectorize`` with refinement: each result with its ``notes`` (``_notes``). With clean parts
     the pictures are read first; those that are not polished are traced here without the renderer
     (``trace.trace_alone``), the others refined (``refine.refine_batch``, given their readings)."""
-    settings = EFFORTS[o.effort]
-    if o.simplify_px is not None:
-        settings = dataclasses.replace(settings, simplify_tol=o.simplify_px)
-    if o.tolerance is not None:
-        settings = dataclasses.replace(settings, tolerance=float(o.tolerance))
-    preset = None if o.preset == "auto" else o.preset
     out: list = [None] * len(pictures)
     rest, readings = list(range(len(pictures))), None
-    if o.parts == "clean":
-        readings = trace.read_pictures(pictures, preset, o.speckle, o.work_pixels())
-        needs = trace.needs_renderer(readings, settings.outline_settings())
+    if plan.parts == "clean":
+        readings = trace.read_pictures(pictures, plan)
+        needs = trace.needs_renderer(readings, plan)
         rest, alone = [i for i, n in enumerate(needs) if n], [i for i, n in enumerate(needs) if not n]
         if alone:
             if on_event and not rest:
                 on_event(Stage("read"))
-            got = trace.trace_alone([readings[i] for i in alone], [pictures[i].shape[:2] for i in alone],
-                                    settings.outline_settings(), colors=o.colors, max_paths=o.max_paths,
+            got = trace.trace_alone([readings[i] for i in alone], [pictures[i].shape[:2] for i in alone], plan,
                                     on_stage=on_event)
             for i, r in zip(alone, got):
                 out[i] = r
@@ -126,11 +138,8 @@ def _refined(model, pictures: list[np.ndarray], o: VectorizeOptions, on_event=No
         from . import refine
         from .raster import compiling
 
-        with compiling(o.compile):  # off by default: each new image size would compile afresh
-            got = refine.refine_batch(model, [to_tensor(pictures[i]) for i in rest], settings=settings,
-                                      parts=o.parts, colors=o.colors, segments=o.segments, quality=o.quality,
-                                      max_paths=o.max_paths, max_work_pixels=o.work_pixels(), speckle=o.speckle,
-                                      on_step=on_event, preset=preset,
+        with compiling(plan.compile):  # off by default: each new image size would compile afresh
+            got = refine.refine_batch(model, [to_tensor(pictures[i]) for i in rest], plan, on_step=on_event,
                                       readings=None if readings is None else [readings[i] for i in rest])
         for i, r in zip(rest, got):
             out[i] = r

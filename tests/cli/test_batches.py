@@ -63,7 +63,7 @@ def test_batch_streams_in_chunks(tmp_path, model_dir, monkeypatch, refine):
     sizes = []
     mod, name = (refinement, "refine_batch") if refine else (infer, "vectorize")
     real = getattr(mod, name)
-    monkeypatch.setattr(mod, name, lambda model, images, **kw: sizes.append(len(images)) or real(model, images, **kw))
+    monkeypatch.setattr(mod, name, lambda model, images, *a, **kw: sizes.append(len(images)) or real(model, images, *a, **kw))
     res = CliRunner().invoke(cli, ["vectorize", str(d), "-o", str(tmp_path / "out"), "--model", model_dir, "-j", "1"]
                              + ([] if refine else ["--no-refine"]))
     assert res.exit_code == 0 and sum(sizes) == 70 and max(sizes) == cli_mod.VECTORIZE_CHUNK

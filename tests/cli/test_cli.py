@@ -186,7 +186,7 @@ def test_choice_lists_are_written_once_and_keep_torch_out_of_help():
     def choices(command, name):
         return tuple(next(p for p in command.params if p.name == name).type.choices)
 
-    assert tuple(refine.EFFORTS) == options.EFFORTS == choices(vectorize, "effort")
+    assert tuple(options.EFFORT_SETTINGS) == options.EFFORTS == choices(vectorize, "effort")
     assert choices(vectorize, "preset") == options.PRESETS and trace.KINDS == options.PRESETS[1:]
     assert refine.PARTS is options.PARTS and choices(vectorize, "parts") == options.PARTS == choices(sample, "parts")
     assert infer.PRIORS is options.PRIORS and choices(sample, "prior") == options.PRIORS

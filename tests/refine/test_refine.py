@@ -1,6 +1,7 @@
 """Test-time refinement (issue "Vectorize fidelity"): it lowers the loss against the input,
 handles inputs of other sizes than the model's, and keeps the SVG valid."""
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -11,13 +12,14 @@ from im2vec_cli.config import REPO_MODELS
 from im2vec_cli.files import load_image
 from im2vec_cli.infer import vectorize
 from im2vec_cli.model.pretrained import from_pretrained
+from im2vec_cli.options import Plan, effort_plan
 from im2vec_cli.raster import set_compile
-from im2vec_cli.refine import EFFORTS, RefineSettings, refine
+from im2vec_cli.refine import refine
 from im2vec_cli.vector import rasterize_svg, to_svg
 from tests.helpers import check_svg, make_tiny_model
 
 ASSETS = Path(__file__).parents[1] / "assets" / "fonts_test"
-QUICK = RefineSettings(latent_steps=10, point_steps=30)
+QUICK = Plan(latent_steps=10, point_steps=30)
 
 
 @pytest.fixture(autouse=True)
@@ -40,7 +42,7 @@ def test_refinement_lowers_the_error_on_real_glyphs():
     before, after = [], []
     for f in files:
         img = load_image(f)
-        vec, info = refine(model, img, settings=QUICK)
+        vec, info = refine(model, img, QUICK)
         assert info["loss_end"] <= info["loss_start"]
         check_svg(to_svg(vec), 64, 64)
         before.append(_cairo_mse(vectorize(model, [img])[0], img))
@@ -53,15 +55,15 @@ def test_efforts_trade_steps_for_error_on_real_glyphs():
     """`vectorize --effort fast` (the CLI default) stays within its step budget and beats the
     amortised guess; "best" fits closer (cairosvg MSE against the input, 4 test-split glyphs)."""
     model = from_pretrained("fonts")
-    fast_s = EFFORTS["fast"]
+    fast_s = effort_plan("fast", parts="model")
     amortised, fast, best = [], [], []
     for f in sorted(ASSETS.glob("*.png"))[4:8]:
         img = load_image(f)
-        vec, info = refine(model, img, settings=fast_s, parts="model")
+        vec, info = refine(model, img, fast_s)
         assert info["latent_steps"] <= fast_s.latent_steps and info["point_steps"] <= fast_s.point_steps
         assert info["polish_steps"] <= fast_s.polish_steps
         fast.append(_cairo_mse(vec, img))
-        best.append(_cairo_mse(refine(model, img, settings=EFFORTS["best"], parts="model")[0], img))
+        best.append(_cairo_mse(refine(model, img, effort_plan("best", parts="model"))[0], img))
         amortised.append(_cairo_mse(vectorize(model, [img])[0], img))
     assert np.mean(fast) < 0.7 * np.mean(amortised), (amortised, fast)
     assert np.mean(best) < np.mean(fast), (fast, best)
@@ -74,7 +76,7 @@ def test_refinement_handles_other_sizes(tmp_path):
     img = torch.ones(3, 30, 50)
     img[:, 8:22, 10:40] = 0.0
     img[:, 22, 10:40] = 0.5  # an anti-aliased edge: not read as pixel art (trace.read), so the model starts too
-    vec, info = refine(model, img, settings=QUICK)
+    vec, info = refine(model, img, QUICK)
     assert info["loss_end"] < info["loss_start"]
     check_svg(to_svg(vec), 50, 30)
     assert _cairo_mse(vec, img) < _cairo_mse(vectorize(model, [img])[0], img)
@@ -84,9 +86,9 @@ def test_refinement_of_flat_images_matches_amortised(tmp_path):
     """Blank input gives an empty SVG and a flat colour one square, as without --refine."""
     model = from_pretrained(make_tiny_model(tmp_path / "tiny"))
     for img in (torch.ones(3, 20, 30), torch.full((3, 20, 30), 0.25)):
-        vec, _ = refine(model, img, settings=QUICK)
+        vec, _ = refine(model, img, QUICK)
         assert to_svg(vec) == to_svg(vectorize(model, [img])[0])
-    assert refine(model, torch.ones(3, 20, 30), settings=QUICK)[0].shapes == []
+    assert refine(model, torch.ones(3, 20, 30), QUICK)[0].shapes == []
 
 
 HELD_OUT = Path("/usr/share/fonts/truetype/liberation/LiberationSansNarrow-Regular.ttf")
@@ -106,14 +108,14 @@ def test_refined_glyphs_match_the_true_outline():
 
     model = from_pretrained("fonts")
     font = TTFont(str(HELD_OUT))
-    compact = RefineSettings(simplify_tol=1.0)
+    compact = Plan(simplify_tol=1.0, parts="model", segments="auto", quality=2e-3)
     ious, ious_c, segs, segs_c, segs_model = [], [], [], [], []
     for ch in "aeR5":
         truth = to_svg(glyph_image(font, ch, size=64, margin=4.0), 3)
         img = load_image(f"{ch}.png", render_png(truth, 64))
         ref = svg_mask(truth, 256)
-        vec, _ = refine(model, img, parts="model")
-        small, _ = refine(model, img, segments="auto", quality=2e-3, settings=compact, parts="model")
+        vec, _ = refine(model, img, Plan(parts="model"))
+        small, _ = refine(model, img, compact)
         ious.append(outline_iou(svg_mask(to_svg(vec), 256), ref))
         ious_c.append(outline_iou(svg_mask(to_svg(small), 256), ref))
         segs.append(vec.num_segments)
@@ -159,10 +161,10 @@ def test_batched_refinement_matches_one_image_at_a_time(parts):
     images = [load_image(f) for f in files]
     images.insert(2, torch.full((3, 64, 64), 0.4))  # flat: no fitting at all
     images.append(torch.nn.functional.interpolate(images[0][None], size=(48, 40), mode="area")[0])
-    settings = EFFORTS["fast"] if parts == "clean" else QUICK
-    together = [v for v, _ in refine_batch(model, images, parts=parts, settings=settings)]
+    settings = dataclasses.replace(effort_plan("fast") if parts == "clean" else QUICK, parts=parts)
+    together = [v for v, _ in refine_batch(model, images, settings)]
     for img, got in zip(images, together):
-        alone = refine(model, img, parts=parts, settings=settings)[0]
+        alone = refine(model, img, settings)[0]
         h, w = img.shape[1:]
         slack = 0 if parts == "clean" else max(2, alone.num_segments // 10)
         assert abs(got.num_segments - alone.num_segments) <= slack
@@ -173,7 +175,7 @@ def test_batched_refinement_matches_one_image_at_a_time(parts):
 
 
 def test_a_picture_beyond_the_work_size_is_vectorized_at_a_smaller_copy(tmp_path):
-    """A picture of more than ``max_work_pixels`` is traced and polished at an area-averaged copy
+    """A picture of more than ``Plan.work_pixels`` is traced and polished at an area-averaged copy
     (bounded time and memory), and its SVG is in its own frame, drawing what it shows."""
     from im2vec_cli.refine import refine_batch
 
@@ -181,8 +183,8 @@ def test_a_picture_beyond_the_work_size_is_vectorized_at_a_smaller_copy(tmp_path
     img = torch.ones(3, 120, 160)
     img[:, 20:100, 30:70] = 0.0
     img[:, 40:60, 100:140] = 0.0
-    full, _ = refine(model, img, settings=QUICK)
-    ((small, _),) = refine_batch(model, [img], settings=QUICK, max_work_pixels=60 * 80)
+    full, _ = refine(model, img, QUICK)
+    ((small, _),) = refine_batch(model, [img], dataclasses.replace(QUICK, work_pixels=60 * 80))
     check_svg(to_svg(small), 160, 120)
     assert (small.width, small.height) == (160, 120)
     assert _cairo_mse(small, img) < 0.01 and _cairo_mse(full, img) < 0.01
@@ -227,6 +229,6 @@ def test_the_outline_polish_holds_the_points_hidden_under_the_shapes_above():
                                               (0.6, 0.6, 0.6), "evenodd"), vec.shapes[1]])
     img = torch.from_numpy(rasterize_svg(to_svg(target), 48, 48)).permute(2, 0, 1).float()
     flags = [[np.ones(len(square) // 3, dtype=bool)], [np.ones(len(bar) // 3, dtype=bool)]]  # corners: no smoothing
-    out = _Fitter(img[None], 8, RefineSettings()).fit_points([vec], 30, 0.3, True, "outline", None, smooth=[flags])[0][0]
+    out = _Fitter(img[None], 8, Plan()).fit_points([vec], 30, 0.3, True, "outline", None, smooth=[flags])[0][0]
     moved = np.abs(out.shapes[0].contours[0] - square).max(-1)
     assert moved[held].max() < 1e-5 and moved[~held].max() > 0.5

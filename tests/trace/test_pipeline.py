@@ -14,7 +14,8 @@ from im2vec_cli import api
 from im2vec_cli.cli import cli
 from im2vec_cli.config import REPO_MODELS
 from im2vec_cli.files import load_image
-from im2vec_cli.trace import OutlineSettings, split_where_wrong
+from im2vec_cli.options import Plan
+from im2vec_cli.trace import split_where_wrong
 from im2vec_cli.trace.pipeline import _box3
 from im2vec_cli.vector import VectorImage, VectorShape, rasterize_svg, to_svg
 from tests.helpers import circle
@@ -194,13 +195,13 @@ def test_split_where_wrong_splits_only_where_the_render_is_wrong():
     target = rasterize_svg(to_svg(truth, 4), w, h).astype(np.float32).astype(np.float64)
     plain = VectorImage(w, h, [VectorShape([_ring(24, 24, 14)], (0.0, 0.0, 0.0), "nonzero")])
     flags = [[np.zeros(8, dtype=bool)]]
-    vec, new_flags, count = split_where_wrong(plain, flags, target, OutlineSettings())
+    vec, new_flags, count = split_where_wrong(plain, flags, target, Plan())
     assert count == 2
     assert len(vec.shapes[0].contours[0]) == 3 * (8 + count) and len(new_flags[0][0]) == 8 + count
     old = {tuple(a) for a in np.round(plain.shapes[0].contours[0][0::3], 6)}
     new = [a for a in np.round(vec.shapes[0].contours[0][0::3], 6) if tuple(a) not in old]
     assert len(new) == 2 and all(a[0] > 34 for a in new)  # the new anchors halve those two, on the right
-    assert split_where_wrong(truth, flags, target, OutlineSettings())[2] == 0  # nothing is wrong with the truth
+    assert split_where_wrong(truth, flags, target, Plan())[2] == 0  # nothing is wrong with the truth
 
 
 def test_box3_is_scipys_uniform_filter():

@@ -12,7 +12,8 @@ from PIL import Image
 from scipy.ndimage import distance_transform_edt, gaussian_filter
 
 from im2vec_cli import api
-from im2vec_cli.trace import OutlineSettings, background_color, clean_outlines, read, two_tone
+from im2vec_cli.options import Plan
+from im2vec_cli.trace import background_color, clean_outlines, read, two_tone
 from im2vec_cli.trace.read import despeckled, noise_sigma, pixel_block, stroke_width
 from im2vec_cli.vector import rasterize_svg
 from tests.trace.outlines import needs_fonts, svg_of, topology
@@ -156,7 +157,7 @@ class NoRenderer:
 
 def test_a_draft_traces_and_fits_without_rendering():
     clean = drawing(64)
-    (vec, info), = clean_outlines([clean], NoRenderer(), OutlineSettings(polish=False))
+    (vec, info), = clean_outlines([clean], NoRenderer(), Plan(outline_steps=0))
     back = rasterize_svg(vec.to_svg(), 64, 64)
     assert iou(back.mean(-1) < 0.5, clean.mean(-1) < 0.5) > 0.95 and info["loss_end"] is None
 

@@ -9,11 +9,12 @@ from __future__ import annotations
 import contextlib
 import signal
 import traceback
+import warnings
 
 import click
 
 from .. import __version__
-from ..errors import Im2VecError, describe
+from ..errors import Im2VecError, OptionWarning, describe
 
 EXIT_HELP = ("Exit codes: 0 ok, 1 error (or some files of a batch failed), 2 bad usage, 130 interrupted, "
              "143 terminated, 129 hung up.")
@@ -102,5 +103,6 @@ def warn(message: str) -> None:
 @click.pass_context
 def cli(ctx, debug):
     """im2vec: raster images to vector graphics (closed cubic Bezier paths) with a learned model."""
+    warnings.filterwarnings("ignore", category=OptionWarning)  # the commands say these themselves, one line each
     ctx.ensure_object(dict)
     ctx.obj["debug"] = debug

@@ -97,7 +97,10 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, toleranc
     written when its batch is done.
     """
     k = parse_segments(segments)
-    for note in _ignored_options(ctx):
+    options = VectorizeOptions(refine=refine, effort=effort, segments=k, quality=quality, max_paths=max_paths,
+                               simplify_px=simplify_px, parts=parts, tolerance=tolerance, colors=colors,
+                               compile=compile_, max_memory=max_memory, preset=preset, speckle=speckle)
+    for note in _ignored_options(ctx, options):
         warn(note)
     items = expand_inputs(inputs)
     single = len(items) == 1 and items[0][1] is None  # one input given: -o may name its file
@@ -116,9 +119,6 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, toleranc
     with starting_up():  # (load_model pauses the collector too)
         from .. import api, runtime
     model = lazy_model(model_name, device, seed)  # loaded where a picture needs it: a traced one does not
-    options = VectorizeOptions(refine=refine, effort=effort, segments=k, quality=quality, max_paths=max_paths,
-                               simplify_px=simplify_px, parts=parts, tolerance=tolerance, colors=colors,
-                               compile=compile_, max_memory=max_memory, preset=preset, speckle=speckle)
     chunk, heavy = VECTORIZE_CHUNK, True
     if engine == "local" and len(items) > 1:
         jobs, chunk, heavy = _jobs(jobs, items, options, free, runtime.gpu_likely(device))
@@ -161,18 +161,11 @@ def _picture_size(item: str) -> tuple[int, int] | None:
         return None
 
 
-# option -> (when it acts, given the parameters; when it does not, why): an option given on the
-# command line that does nothing in the mode chosen gets a warning, not silence
+# options of the CLI alone -> (when it acts, given the parameters; when it does not, why); those of
+# VectorizeOptions are noted by VectorizeOptions.idle, as the API warns of them
 _APPLIES = {
-    "tolerance": (lambda p: p["refine"] and p["parts"] == "clean", "it shapes --parts clean with refinement"),
-    "colors": (lambda p: p["refine"] and p["parts"] == "clean", "it shapes --parts clean with refinement"),
-    "preset": (lambda p: p["refine"] and p["parts"] == "clean", "it shapes --parts clean with refinement"),
-    "speckle": (lambda p: p["refine"] and p["parts"] == "clean", "it shapes --parts clean with refinement"),
-    "effort": (lambda p: p["refine"], "it sets how hard refinement works, and --no-refine skips it"),
-    "compile_": (lambda p: p["refine"], "it compiles the refinement, and --no-refine skips it"),
     "address": (lambda p: p["engine"] == "ray", "it is the Ray cluster of --engine ray"),
     "verbose": (lambda p: p["engine"] == "local", "the Ray engine's actors describe no picture"),
-    "quality": (lambda p: p["segments"] == "auto", "it sets --segments auto's choice"),
 }
 
 
@@ -222,16 +215,14 @@ def describe_result(item, vec) -> str:
     return f"{item}: {kind}; {len(vec.shapes)} paths, {vec.num_segments} segments"
 
 
-def _ignored_options(ctx: click.Context) -> list[str]:
+def _ignored_options(ctx: click.Context, options: VectorizeOptions) -> list[str]:
     """One warning for each option given on the command line that does nothing with the others."""
     from click.core import ParameterSource
 
-    notes = []
-    for name, (acts, why) in _APPLIES.items():
-        if ctx.get_parameter_source(name) == ParameterSource.COMMANDLINE and not acts(ctx.params):
-            flag = "--compile" if name == "compile_" else f"--{name}"
-            notes.append(f"{flag} does nothing here: {why}")
-    return notes
+    given = {n for n in ctx.params if ctx.get_parameter_source(n) == ParameterSource.COMMANDLINE}
+    notes = ["--" + note for note in options.idle({"compile" if n == "compile_" else n for n in given})]
+    return notes + [f"--{name} does nothing here: {why}" for name, (acts, why) in _APPLIES.items()
+                    if name in given and not acts(ctx.params)]
 
 
 ENCODE_CHUNK = 64  # images encoded (and fitted) in one batch

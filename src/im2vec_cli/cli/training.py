@@ -148,7 +148,7 @@ def train(data_dir, run_dir, val_dir, config_file, arch, size, paths, latent, gr
     import signal
 
     from .. import api
-    from ..options import GROWABLE
+    from ..options import GROWABLE, fixed_on_init
     from ..runtime import resolve_device
 
     model_cfg, train_cfg, model_given, train_given = _configs(
@@ -159,11 +159,11 @@ def train(data_dir, run_dir, val_dir, config_file, arch, size, paths, latent, gr
     if init_model is not None:
         if resume:
             raise click.UsageError("--init starts a new run; --resume continues one: give one of them")
-        fixed = sorted(set(model_given) - set(GROWABLE))
+        start = load_model(init_model, "cpu", 0, raster_ok=True)
+        fixed = fixed_on_init(model_given, start.config.to_dict())
         if fixed:
             raise click.UsageError("--init takes the model options from the model (but " + ", ".join(GROWABLE)
                                    + "); drop " + ", ".join(fixed))
-        start = load_model(init_model, "cpu", 0, raster_ok=True)
         model_cfg = {k: v for k, v in model_given.items() if k in GROWABLE}
     elif resume:  # the checkpoint's configs, the options given over them
         model_cfg, train_cfg = model_given, train_given

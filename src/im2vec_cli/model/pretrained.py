@@ -15,7 +15,7 @@ from ..checkpoint import load_checkpoint
 from ..config import DEFAULT_MODEL, ModelConfig, resolve_model
 from ..errors import ModelError
 from ..files import atomic_write, check_output_folder, replace_folder
-from ..options import GROWABLE
+from ..options import GROWABLE, fixed_on_init
 from . import build_model
 from .encoder import Feedback, PathPass
 from .points import PointPass
@@ -169,7 +169,7 @@ def grow_state(state: dict[str, torch.Tensor], old: ModelConfig, new: ModelConfi
     import dataclasses
 
     changed = sorted(k for k in dataclasses.asdict(old) if getattr(old, k) != getattr(new, k))
-    bad = [k for k in changed if k not in GROWABLE]
+    bad = fixed_on_init(dataclasses.asdict(new), dataclasses.asdict(old))
     if bad:
         raise ModelError(f"only {', '.join(GROWABLE)} can change when fine-tuning; the model's {', '.join(bad)} differ")
     if "palette" in changed and new.palette:

@@ -5,7 +5,7 @@ The amortised encoder gives a first guess; refinement then minimises the pyramid
 on the model's manifold), then over the control points and colours directly. Paths whose
 removal barely changes the loss are then dropped, neighbouring segments are merged while the
 outline moves less than ``simplify_tol`` pixels (``trace/simplify.py``), and a short points-only
-polish follows. The default uses one pyramid level: see ``RefineSettings.levels``. The stages
+polish follows. The default uses one pyramid level: see ``options.Plan.levels``. The stages
 are the methods of ``Refinement``; overlapping even-odd paths are resolved once, on the
 latent stage's result (``vector.resolve_overlaps``), and the later stages fit under the rule it chose.
 
@@ -14,16 +14,15 @@ the *input's* normalised frame, ``(x / W, y / H)`` of the input's pixel grid, an
 the input's resolution (inputs larger than ``max_side`` are fitted at a reduced copy), so
 ``tau`` is measured in input pixels.
 
-Its names load on first use (``lazy.py``): ``settings`` (``EFFORTS``) needs no torch.
+Its settings are the run's ``options.Plan`` (``options.EFFORT_SETTINGS`` names the efforts). Its
+names load on first use (``lazy.py``).
 """
 
 from ..lazy import lazy_names
 from ..options import PARTS
 
 _WHERE = {
-    "EFFORTS": "settings",
     "REFINE_BATCH": "batch",
-    "RefineSettings": "settings",
     "Refinement": "stages",
     "refine": "batch",
     "refine_batch": "batch",

@@ -11,43 +11,33 @@ import torch
 
 from ..events import Event, Stage
 from ..model.vae import Im2Vec
-from ..options import MAX_WORK_PIXELS, PARTS
+from ..options import PARTS, Plan
 from ..trace import Reading, clean_outlines, flat_result, read_pictures, simplify
 from ..trace.batch import FLAT_SUMMARY, workable
 from ..vector import VectorImage
-from .settings import RefineSettings
 from .stages import Refinement
 
 REFINE_BATCH = 32  # images refined together (one render per step); bounds the memory of a batch
 
 
-def refine(
-    model: Im2Vec,
-    image: torch.Tensor,
-    *,
-    parts: str = "clean",
-    colors: int | None = None,
-    segments: int | str | torch.Tensor | None = None,
-    quality: float | None = None,
-    max_paths: int | None = None,
-    settings: RefineSettings = RefineSettings(),
-    on_step: Callable[[Event], None] | None = None,
-) -> tuple[VectorImage, dict]:
-    """Vectorise one image ``(3, H, W)`` in [0, 1] and refine the result against it.
+def refine(model: Im2Vec, image: torch.Tensor, plan: Plan = Plan(), *,
+           on_step: Callable[[Event], None] | None = None) -> tuple[VectorImage, dict]:
+    """Vectorise one image ``(3, H, W)`` in [0, 1] and refine the result against it, as the run's
+    ``plan`` says (``options.Plan``: ``VectorizeOptions.resolve()`` makes one; ``Plan()`` refines most).
 
-    ``parts="model"`` keeps the model's own paths (the same P paths in the same order for
+    ``plan.parts="model"`` keeps the model's own paths (the same P paths in the same order for
     every image of a class): the latent stage, the point stage, pruning, simplifying and a
-    polish. ``parts="clean"`` (the default) writes clean outlines instead: two starts, each
+    polish. ``"clean"`` (the default) writes clean outlines instead: two starts, each
     polished through the renderer, the one nearer the image kept:
 
     - the model's refined paths, each shape redrawn as clean rings (``trace.redrawn``),
       with the pieces and holes of a two-tone image that the model missed added or cut out;
-    - the image's own regions traced (``trace.traced``; ``colors`` sets the palette).
+    - the image's own regions traced (``trace.traced``; ``plan.colors`` sets the palette).
 
     (The stage list of clean outlines is ``trace.clean_outlines``; ``Refinement`` is its polisher.)
 
     Both are shapes of non-overlapping outer contours and holes, fitted with cubics within
-    ``settings.tolerance`` input pixels, corners kept sharp. ``segments`` / ``quality`` as in
+    ``plan.tolerance`` input pixels, corners kept sharp. ``plan.segments`` / ``plan.quality`` as in
     ``infer.vectorize`` (``"auto"``: per-path counts) shape the model's paths.
 
     Returns:
@@ -57,38 +47,24 @@ def refine(
     """
     if image.dim() != 3 or image.shape[0] != 3:
         raise ValueError(f"image must be (3, H, W), got {tuple(image.shape)}")
-    return refine_batch(model, [image], parts=parts, colors=colors, segments=segments, quality=quality,
-                        max_paths=max_paths, settings=settings, on_step=on_step)[0]
+    return refine_batch(model, [image], plan, on_step=on_step)[0]
 
 
-def refine_batch(
-    model: Im2Vec,
-    images: list[torch.Tensor],
-    *,
-    parts: str = "clean",
-    colors: int | None = None,
-    segments: int | str | None = None,
-    quality: float | None = None,
-    max_paths: int | None = None,
-    settings: RefineSettings = RefineSettings(),
-    on_step: Callable[[Event], None] | None = None,
-    batch: int = REFINE_BATCH,
-    max_work_pixels: int = MAX_WORK_PIXELS,
-    preset: str | None = None,
-    speckle: int | None = None,
-    readings: list[Reading] | None = None,
-) -> list[tuple[VectorImage, dict]]:
+def refine_batch(model: Im2Vec, images: list[torch.Tensor], plan: Plan = Plan(), *,
+                 on_step: Callable[[Event], None] | None = None, batch: int = REFINE_BATCH,
+                 readings: list[Reading] | None = None) -> list[tuple[VectorImage, dict]]:
     """``refine`` of many images ``(3, H_i, W_i)``: images of one size are refined together, ``batch`` at a
     time, each step one render of them all; an image that has converged stops costing. Each image gets what
     ``refine`` alone gives it, up to float rounding (the batch sums per-image losses; Adam's state is per
     coordinate). Returns ``(vector image, summary)`` per image, in order. A picture of more than
-    ``max_work_pixels`` is vectorized at an area-averaged copy that large, its result scaled back to its frame.
+    ``plan.work_pixels`` is vectorized at an area-averaged copy that large, its result scaled back to its frame.
 
-    With ``parts="clean"`` each picture is first read (``trace.read``, ``preset``, ``speckle``) and
-    its clean picture traced; the summary's ``kind`` and ``reading`` say what it was read as.
-    ``readings``: theirs where the caller has them (``trace.read_pictures``, these options): not read again."""
-    sizes = _sizes(images, parts)
-    images, readings = _read(images, parts, preset, speckle, max_work_pixels, on_step, readings)
+    With ``plan.parts="clean"`` each picture is first read (``trace.read``: ``plan.preset``,
+    ``plan.speckle``) and its clean picture traced; the summary's ``kind`` and ``reading`` say what it
+    was read as. ``readings``: theirs where the caller has them (``trace.read_pictures`` of this plan):
+    not read again."""
+    sizes = _sizes(images, plan.parts)
+    images, readings = _read(images, plan, on_step, readings)
     out: list = [None] * len(images)
     by_size: dict[tuple[int, int], list[int]] = {}
     for i, im in enumerate(images):
@@ -105,22 +81,25 @@ def refine_batch(
             for group in by_size.values():
                 for start in range(0, len(group), batch):
                     ids = group[start : start + batch]
-                    run = Refinement(model, [images[i] for i in ids], settings, on_step)
-                    kw = {"segments": segments, "quality": quality, "max_paths": max_paths}
-                    if parts == "model":
-                        got = _model_paths(run, list(range(len(ids))), **kw)
-                    else:
-                        pics = [_array(im) for im in run.images]
-                        got = clean_outlines(pics, run, settings.outline_settings(), colors=colors, max_paths=max_paths,
-                                             readings=[readings[i] for i in ids], on_stage=on_step,
-                                             model_paths=functools.partial(_model_paths, run, **kw, outline=True))
-                    for i, r in zip(ids, got):
+                    for i, r in zip(ids, _refined(model, [images[i] for i in ids], plan, on_step,
+                                                  readings and [readings[i] for i in ids])):
                         out[i] = r
     finally:
         for p, r in zip(model.parameters(), req):
             p.requires_grad_(r)
     notes = [{"kind": r.kind, "reading": r.figures or {}} for r in readings] if readings else [{}] * len(out)
     return [(v.rescaled(size[1], size[0]), {**info, **n}) for (v, info), size, n in zip(out, sizes, notes)]
+
+
+def _refined(model: Im2Vec, images: list[torch.Tensor], plan: Plan, on_step, readings: list[Reading] | None
+             ) -> list[tuple[VectorImage, dict]]:
+    """One batch of images of one size refined: the model's paths, or clean outlines polished by it."""
+    run = Refinement(model, images, plan, on_step)
+    if plan.parts == "model":
+        return _model_paths(run, list(range(len(images))), plan)
+    pics = [_array(im) for im in run.images]
+    return clean_outlines(pics, run, plan, readings=readings, on_stage=on_step,
+                          model_paths=functools.partial(_model_paths, run, plan=plan, outline=True))
 
 
 def _sizes(images: list[torch.Tensor], parts: str) -> list[tuple[int, int]]:
@@ -133,16 +112,17 @@ def _sizes(images: list[torch.Tensor], parts: str) -> list[tuple[int, int]]:
     return [tuple(im.shape[1:]) for im in images]
 
 
-def _read(images: list[torch.Tensor], parts: str, preset: str | None, speckle: int | None, most: int, on_step=None,
-          readings: list[Reading] | None = None) -> tuple[list[torch.Tensor], list[Reading] | None]:
-    """With ``parts="clean"`` each picture read (``trace.read_pictures``: at most ``most`` pixels;
-    ``readings`` where given) and its clean picture, ``(3, H', W')`` on its device; ``on_step``
-    hears ``Stage("read")``. Else each picture at most ``most`` pixels, and no readings."""
-    if parts != "clean":
+def _read(images: list[torch.Tensor], plan: Plan, on_step=None, readings: list[Reading] | None = None
+          ) -> tuple[list[torch.Tensor], list[Reading] | None]:
+    """With ``plan.parts="clean"`` each picture read (``trace.read_pictures``: at most ``plan.work_pixels``
+    pixels; ``readings`` where given) and its clean picture, ``(3, H', W')`` on its device; ``on_step``
+    hears ``Stage("read")``. Else each picture at most ``plan.work_pixels`` pixels, and no readings."""
+    most = plan.work_pixels
+    if plan.parts != "clean":
         return [_tensor(workable(_array(im), most), im) if im.shape[1] * im.shape[2] > most else im
                 for im in images], None
     if readings is None:
-        readings = read_pictures([_array(im) for im in images], preset, speckle, most)
+        readings = read_pictures([_array(im) for im in images], plan)
     if on_step:
         on_step(Stage("read"))
     return [_tensor(r.picture, im) for r, im in zip(readings, images)], readings
@@ -158,15 +138,15 @@ def _tensor(picture: np.ndarray, like: torch.Tensor) -> torch.Tensor:
     return torch.from_numpy(np.ascontiguousarray(picture.transpose(2, 0, 1))).to(like)
 
 
-def _model_paths(run: Refinement, index: list[int], segments, quality, max_paths, outline: bool = False
+def _model_paths(run: Refinement, index: list[int], plan: Plan, outline: bool = False
                  ) -> list[tuple[VectorImage, dict]]:
-    """The model's paths of the images ``index`` refined (``parts="model"``); never worse than
-    the model's guess.
+    """The model's paths of the images ``index`` refined (``parts="model"``; ``plan.segments``,
+    ``plan.quality`` and ``plan.max_paths`` shape them); never worse than the model's guess.
 
     ``outline``: stop after the point stage (the paths are then united and refitted)."""
-    mu, place, k = run.encode(index, segments, quality)
+    mu, place, k = run.encode(index, plan.segments, plan.quality)
     z, latent_steps = run.fit_latent(mu, k, place, index)
-    guess = run.decode(z, k, place, max_paths, index)
+    guess = run.decode(z, k, place, plan.max_paths, index)
     start = run.loss(guess, index)
     vecs, point_steps = run.fit_points(guess, index)
     info = [{"loss_start": a, "latent_steps": b, "point_steps": c} for a, b, c in zip(start, latent_steps, point_steps)]

@@ -12,13 +12,13 @@ import torch.nn.functional as F
 
 from ..events import RefineStep
 from ..optim import Adam
+from ..options import Plan
 from ..raster import gaussian_pyramid, polygon_area, pyramid_l2, render_pyramid, segment_controls
 from ..trace import Corners
 from ..vector import VectorImage, VectorShape, fill_vector
-from .settings import RefineSettings
 
 
-def _geometry_penalty(points: torch.Tensor, real: torch.Tensor, size: tuple[int, int], s: RefineSettings) -> torch.Tensor:
+def _geometry_penalty(points: torch.Tensor, real: torch.Tensor, size: tuple[int, int], s: Plan) -> torch.Tensor:
     """Keep control points near the canvas and segments from collapsing: ``(B,)``, per image.
 
     Args:
@@ -33,7 +33,7 @@ def _geometry_penalty(points: torch.Tensor, real: torch.Tensor, size: tuple[int,
     return s.bounds_weight * bounds + s.collapse_weight * collapse
 
 
-def _converged(history: list[float], s: RefineSettings) -> bool:
+def _converged(history: list[float], s: Plan) -> bool:
     if len(history) <= s.patience:
         return False
     before = min(history[: -s.patience])
@@ -123,7 +123,7 @@ class _Progress:
     """Per-image loss history of a batched optimisation: each image's best loss and its early
     stop (``_converged``). ``live`` lists the images still optimised, in batch order."""
 
-    def __init__(self, n: int, s: RefineSettings):
+    def __init__(self, n: int, s: Plan):
         self.s, self.hist, self.best, self.live = s, [[] for _ in range(n)], [float("inf")] * n, list(range(n))
 
     def record(self, losses: list[float]) -> tuple[list[tuple[int, int]], bool]:
@@ -147,7 +147,7 @@ class _Fitter:
     point/colour stages. Every method takes vector images with ``index``, the batch row of
     each one's target (default: the i-th image is row i)."""
 
-    def __init__(self, target: torch.Tensor, samples: int, s: RefineSettings):
+    def __init__(self, target: torch.Tensor, samples: int, s: Plan):
         self.size = tuple(target.shape[-2:])
         self.target = gaussian_pyramid(target, s.levels)  # levels of (B, 3, h, w)
         self.samples, self.s = samples, s

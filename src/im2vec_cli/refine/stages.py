@@ -12,10 +12,10 @@ from ..frame import Placement
 from ..infer import model_input, segment_counts, to_vector
 from ..model.vae import Im2Vec
 from ..optim import Adam
+from ..options import Plan
 from ..trace import Corners, simplify
 from ..vector import VectorImage, resolve_overlaps
 from .core import _Fitter, _Progress
-from .settings import RefineSettings
 
 
 class Refinement:
@@ -28,7 +28,7 @@ class Refinement:
     stages, ``fine`` with ``polish_samples`` that judges results and fits the polish.
     """
 
-    def __init__(self, model: Im2Vec, images: list[torch.Tensor], settings: RefineSettings,
+    def __init__(self, model: Im2Vec, images: list[torch.Tensor], settings: Plan,
                  on_step: Callable[[RefineStep], None] | None = None):
         s = self.s = settings
         self.model, self.images, self.on_step = model, images, on_step

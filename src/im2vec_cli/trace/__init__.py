@@ -23,14 +23,14 @@ Frame: the pixel frame of the picture (``vector/image.py``).
 from .batch import flat_result, needs_renderer, read_pictures, trace_alone
 from .fit import Corners, fit_ring, fit_rings, split_segments
 from .outline import cleaned, redrawn, traced
-from .pipeline import CHOICE_TOLERANCE, OutlineSettings, Polisher, clean_outlines, polished, split_where_wrong
+from .pipeline import CHOICE_TOLERANCE, Polisher, clean_outlines, polished, split_where_wrong
 from .read import KINDS, Reading, read
 from .regions import Region, background_color, level_polygons, trace, two_tone
 from .simplify import simplify, simplify_contour
 from .untangle import crosses, untangle
 
 __all__ = [
-    "CHOICE_TOLERANCE", "Corners", "KINDS", "OutlineSettings", "Polisher", "Reading", "Region", "read", "background_color", "clean_outlines",
+    "CHOICE_TOLERANCE", "Corners", "KINDS", "Polisher", "Reading", "Region", "read", "background_color", "clean_outlines",
     "cleaned", "crosses", "fit_ring", "fit_rings", "flat_result", "level_polygons", "needs_renderer", "polished",
     "read_pictures", "redrawn", "simplify", "simplify_contour", "split_segments", "split_where_wrong", "trace",
     "trace_alone", "traced", "two_tone", "untangle",

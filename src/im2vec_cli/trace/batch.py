@@ -17,9 +17,10 @@ from collections.abc import Callable
 import numpy as np
 
 from ..events import Stage
+from ..options import Plan
 from ..raster.curves import line_controls
 from ..vector import VectorImage, VectorShape
-from .pipeline import OutlineSettings, clean_outlines, polished
+from .pipeline import clean_outlines, polished
 from .read import Reading, read
 
 UNIFORM_TOL = 2 / 255  # a picture whose pixels all lie within this of each other is one flat colour
@@ -72,28 +73,26 @@ def workable(picture: np.ndarray, most: int) -> np.ndarray:
     return torch.nn.functional.interpolate(x, size=size, mode="area")[0].permute(1, 2, 0).numpy()
 
 
-def read_pictures(pictures: list[np.ndarray], preset: str | None, speckle: int | None, most: int
-                  ) -> list[Reading]:
-    """Each picture (at most ``most`` pixels, ``workable``) read (``read.read``); its clean picture
-    as refinement sees it, in float32."""
+def read_pictures(pictures: list[np.ndarray], s: Plan) -> list[Reading]:
+    """Each picture (at most ``s.work_pixels`` pixels, ``workable``) read (``read.read``, as
+    ``s.preset`` and ``s.speckle`` say); its clean picture as refinement sees it, in float32."""
     out = []
     for pic in pictures:
-        r = read(workable(pic, most).astype(np.float64), preset, speckle)
+        r = read(workable(pic, s.work_pixels).astype(np.float64), s.preset, s.speckle)
         out.append(dataclasses.replace(r, picture=r.picture.astype(np.float32).astype(np.float64)))
     return out
 
 
-def needs_renderer(readings: list[Reading], s: OutlineSettings) -> list[bool]:
+def needs_renderer(readings: list[Reading], s: Plan) -> list[bool]:
     """Per reading, whether its picture is polished through the renderer (not flat, ``polished``)."""
     return [polished(r, r.picture.shape, s) and uniform_color(r.picture) is None for r in readings]
 
 
-def trace_alone(readings: list[Reading], sizes: list[tuple[int, int]], s: OutlineSettings, *,
-                colors: int | None = None, max_paths: int | None = None,
+def trace_alone(readings: list[Reading], sizes: list[tuple[int, int]], s: Plan, *,
                 on_stage: Callable[[Stage], None] | None = None) -> list[tuple[VectorImage, dict]]:
-    """The clean outlines of pictures read as ``readings`` that none is polished
-    (``needs_renderer`` false for each), each on its ``sizes (H, W)`` canvas, with its summary
-    (as ``refine.refine_batch`` gives it: the kind it was read as, and how)."""
+    """The clean outlines (``s``: the run's ``options.Plan``) of pictures read as ``readings`` that
+    none is polished (``needs_renderer`` false for each), each on its ``sizes (H, W)`` canvas, with
+    its summary (as ``refine.refine_batch`` gives it: the kind it was read as, and how)."""
     out: list = [None] * len(readings)
     todo = []
     for i, r in enumerate(readings):
@@ -103,8 +102,8 @@ def trace_alone(readings: list[Reading], sizes: list[tuple[int, int]], s: Outlin
         else:
             todo.append(i)
     if todo:
-        got = clean_outlines([readings[i].picture for i in todo], None, s, colors=colors, max_paths=max_paths,
-                             readings=[readings[i] for i in todo], on_stage=on_stage)
+        got = clean_outlines([readings[i].picture for i in todo], None, s, readings=[readings[i] for i in todo],
+                             on_stage=on_stage)
         for i, r in zip(todo, got):
             out[i] = r
     return [(v.rescaled(w, h), {**info, "kind": r.kind, "reading": r.figures or {}})

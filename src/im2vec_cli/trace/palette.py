@@ -232,7 +232,7 @@ def _extreme3(a: np.ndarray, op) -> np.ndarray:
     return op(op(rows[:, :-2], rows[:, 1:-1]), rows[:, 2:])
 
 
-MIXES_ON_EDGES = 128 * 128  # pictures of more pixels (not polished: OutlineSettings.polish_side) explain only
+MIXES_ON_EDGES = 128 * 128  # pictures of more pixels (not polished: options.Plan.max_side) explain only
 # their edge pixels as mixes in ``_assign``: 0.73 -> 0.16 s on a 512 px logo of 8 colours, the same SVG at 2048 px
 FLAT_BY_LEVELS = 512 * 512  # pictures of more pixels find their flat pixels on 8-bit levels
 

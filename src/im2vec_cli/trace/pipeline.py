@@ -26,6 +26,7 @@ from typing import Protocol
 import numpy as np
 
 from ..events import Stage
+from ..options import Plan
 from ..raster.curves import flatten_ring
 from ..vector import VectorImage, VectorShape, fill_vector
 from .fit import Corners, split_segments
@@ -35,23 +36,6 @@ from .regions import background_color, two_tone
 from .untangle import untangle
 
 CHOICE_TOLERANCE = 0.25  # px: the clean-outline starts are compared fitted this closely
-
-
-@dataclass(frozen=True)
-class OutlineSettings:
-    """The clean-outline settings (``refine.RefineSettings.outline_settings`` gives them)."""
-
-    tolerance: float = 0.5  # cubics fitted within this many input px of the traced/united ring
-    split_error: float = 0.01  # segments along which the render is still this wrong (MSE) are halved (0: never)
-    max_segments: int = 200  # per contour, splitting stops here
-    model_start: bool = True  # a two-tone picture also starts from the model's paths
-    polish_segments: int = 4000  # an outline of more segments is not polished: each step would render them all,
-    # at the fit size (128 px) where a picture of that many is finer than a pixel; it is fitted within tolerance
-    polish: bool = True  # False (`--effort draft`): traced and fitted only, nothing rendered
-    polish_side: int = 128  # a picture of a longer side is not polished: the polish renders at this size
-    # (refinement's max_side), where the outline, fitted within tolerance of the full-size picture, is finer
-    # than a pixel. On 400-600 px pictures it made things worse: MSE 0.00056 polished against 0.00036 not on
-    # logos, 0.00131 against 0.00071 on scans (bench/realworld.py)
 
 
 class Polisher(Protocol):
@@ -91,13 +75,13 @@ class Start:
         return with_rule(vec, "evenodd"), flags, exact
 
 
-def clean_outlines(pictures: list[np.ndarray], polisher: Polisher | None, s: OutlineSettings = OutlineSettings(), *,
-                   colors: int | None = None, max_paths: int | None = None, model_paths: ModelPaths | None = None,
-                   readings: list[Reading] | None = None, on_stage: Callable[[Stage], None] | None = None
-                   ) -> list[tuple[VectorImage, dict]]:
+def clean_outlines(pictures: list[np.ndarray], polisher: Polisher | None, s: Plan = Plan(), *,
+                   model_paths: ModelPaths | None = None, readings: list[Reading] | None = None,
+                   on_stage: Callable[[Stage], None] | None = None) -> list[tuple[VectorImage, dict]]:
     """Clean outlines of ``pictures`` (each ``(H, W, 3)`` in [0, 1]): non-overlapping outer
     contours and holes, nonzero, fitted within ``s.tolerance`` px and polished against the
-    picture. ``model_paths`` gives the model's paths of pictures (the second start).
+    picture (``s``: the run's ``options.Plan``; ``s.colors`` and ``s.max_paths`` shape the palette).
+    ``model_paths`` gives the model's paths of pictures (the second start).
     ``readings``: what each picture is (``read.read``: ``images`` are their clean pictures); its
     kind shapes the trace (pixel art along its pixel edges), the palette of a photo and
     whether the outline is polished (``polished``); ``polisher`` may be None where none is.
@@ -107,11 +91,11 @@ def clean_outlines(pictures: list[np.ndarray], polisher: Polisher | None, s: Out
     ``start`` (which start was kept), ``segments``, and the model stage's figures where it ran.
     """
     readings = readings or [Reading("", pic) for pic in pictures]
-    each = [r.colors if colors is None else colors for r in readings]
+    each = [r.colors if s.colors is None else s.colors for r in readings]
     polish_these = [polished(r, pic.shape, s) for r, pic in zip(readings, pictures)]
     if polisher is None and any(polish_these):
         raise ValueError("a picture to polish needs a polisher")
-    starts, info = _starts(pictures, s, each, readings, polish_these, max_paths, model_paths)
+    starts, info = _starts(pictures, s, each, readings, polish_these, model_paths)
     chosen = choose(starts, polisher)
     made = [start.outline(s.tolerance * r.loose) for start, r in zip(chosen, readings)]
     tell = on_stage or (lambda _: None)
@@ -129,23 +113,22 @@ def clean_outlines(pictures: list[np.ndarray], polisher: Polisher | None, s: Out
     return out
 
 
-def polished(reading: Reading, shape: tuple[int, ...], s: OutlineSettings) -> bool:
+def polished(reading: Reading, shape: tuple[int, ...], s: Plan) -> bool:
     """Whether the picture of ``shape (H, W, ...)`` read as ``reading`` is polished through the
     renderer (the only stage that needs torch): not at ``--effort draft``, nor pixel art or a
-    photo (``Reading.polish``), nor a picture of a longer side than ``s.polish_side``."""
-    return s.polish and reading.polish and max(shape[:2]) <= s.polish_side
+    photo (``Reading.polish``), nor a picture of a longer side than the polish's ``s.max_side``."""
+    return s.polish and reading.polish and max(shape[:2]) <= s.max_side
 
 
-def _starts(pictures: list[np.ndarray], s: OutlineSettings, colors: list[int | None], readings: list[Reading],
-            polished: list[bool], max_paths: int | None, model_paths: ModelPaths | None
-            ) -> tuple[list[list[Start]], list[dict]]:
+def _starts(pictures: list[np.ndarray], s: Plan, colors: list[int | None], readings: list[Reading],
+            polished: list[bool], model_paths: ModelPaths | None) -> tuple[list[list[Start]], list[dict]]:
     """Per picture its starts (the image's own first) and the model stage's summary (or ``{}``).
 
     Multi-colour pictures start from their own regions only: the shipped emoji model's paths
     lost to them on every OpenMoji face tried (bench/outlines.py) and cost seconds. So do
     pictures that are not polished (``polished``): the model's paths are drawn at the polish's
     size, coarser than the picture's own trace."""
-    starts = [[Start("image", pic, colors=k, max_paths=max_paths, kind=r.kind, tone=r.tone)]
+    starts = [[Start("image", pic, colors=k, max_paths=s.max_paths, kind=r.kind, tone=r.tone)]
               for pic, k, r in zip(pictures, colors, readings)]
     info: list[dict] = [{} for _ in pictures]
     if model_paths is None or not s.model_start:
@@ -187,7 +170,7 @@ def polish(polisher: Polisher, vecs: list[VectorImage], flags: list[Corners], to
 
 
 def split_and_polish(polisher: Polisher, pictures: list[np.ndarray], vecs: list[VectorImage], flags: list[Corners],
-                     loss: dict[int, float], s: OutlineSettings) -> tuple[list[VectorImage], dict[int, float]]:
+                     loss: dict[int, float], s: Plan) -> tuple[list[VectorImage], dict[int, float]]:
     """Each polished picture's segments that are still wrong halved and polished again; the
     new result kept where its loss is lower."""
     split = {}
@@ -205,7 +188,7 @@ def split_and_polish(polisher: Polisher, pictures: list[np.ndarray], vecs: list[
     return out, loss
 
 
-def split_where_wrong(vec: VectorImage, flags: Corners, picture: np.ndarray, s: OutlineSettings
+def split_where_wrong(vec: VectorImage, flags: Corners, picture: np.ndarray, s: Plan
                       ) -> tuple[VectorImage, Corners, int]:
     """Halve every segment along which the render still differs from ``picture (H, W, 3)`` by
     more than ``s.split_error`` (mean squared, over the pixels the segment passes and their

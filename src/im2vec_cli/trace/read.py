@@ -13,7 +13,7 @@ picture it shows.
   its curves fitted twice as loosely (a posterised region's edge is no exact outline).
 
 Pixel art and photos are not polished through the renderer (the one exact, the other of too
-many segments); nor is any picture larger than the polish's size (``OutlineSettings.polish_side``).
+many segments); nor is any picture larger than the polish's size (``options.Plan.max_side``).
 
 Pieces (and holes) smaller than ``speckle`` x ``speckle`` px are dropped from scans and line
 art (``--filter-speckle``, as vtracer has).
