@@ -54,7 +54,7 @@ def pack(data: Path, phases: dict[str, Path], thin: dict[str, int]) -> None:
     """``thin``: every Nth training picture of a set (and validation pictures as many as train
     uses, ``VAL_IMAGES``), where a set's pictures would not fit in what travels."""
     sys.path.insert(0, str(ROOT / "src"))
-    from im2vec_cli.train import VAL_IMAGES
+    from im2vec_cli.training.train import VAL_IMAGES
 
     shutil.rmtree(PACK, ignore_errors=True)
     PACK.mkdir()

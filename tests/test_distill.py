@@ -8,13 +8,13 @@ import pytest
 import torch
 
 from im2vec_cli.config import TrainConfig
-from im2vec_cli.distill import TEACHER_FILE, Teacher, distill_loss, fit_teacher
 from im2vec_cli.errors import ConfigError, Im2VecError
 from im2vec_cli.events import Teaching, TimeUp
 from im2vec_cli.model.pretrained import from_pretrained as load_pretrained
 from im2vec_cli.model.vae import Im2Vec
 from im2vec_cli.project import GUESS, LATENT, project
-from im2vec_cli.train import train
+from im2vec_cli.training.distill import TEACHER_FILE, Teacher, distill_loss, fit_teacher
+from im2vec_cli.training.train import train
 from tests.helpers import synthetic_shapes
 from tests.test_train import MODEL, fast_cfg
 
@@ -137,7 +137,7 @@ def test_bad_distillation_settings_are_refused(bad):
 
 def test_the_model_built_fresh_is_untouched_by_freeze():
     """``freeze("")`` leaves every weight learning (a plain run)."""
-    from im2vec_cli.distill import freeze
+    from im2vec_cli.training.distill import freeze
 
     m = Im2Vec(MODEL)
     freeze(m, "encoder")
@@ -161,8 +161,8 @@ def _ddp_teacher(rank, world, model_dir, images, port, out):
     """A DDP rank (gloo) that fits its share of the teacher, and asks ``_past`` off and on a logging step."""
     import torch.distributed as dist
 
-    import im2vec_cli.distill as distill
-    from im2vec_cli.train import _past
+    import im2vec_cli.training.distill as distill
+    from im2vec_cli.training.train import _past
 
     dist.init_process_group("gloo", init_method=f"tcp://127.0.0.1:{port}", rank=rank, world_size=world)
     try:
@@ -182,7 +182,7 @@ def _ddp_teacher(rank, world, model_dir, images, port, out):
 def test_ddp_ranks_share_the_teachers_fit_and_gather_the_same_teacher(tmp_path, trained, shapes, monkeypatch):
     import socket
 
-    import im2vec_cli.distill as distill
+    import im2vec_cli.training.distill as distill
 
     monkeypatch.setattr(distill, "TEACHER_BATCH", 4)
     threads = torch.get_num_threads()

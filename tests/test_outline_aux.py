@@ -12,7 +12,8 @@ import torch
 from im2vec_cli.config import TrainConfig
 from im2vec_cli.errors import ConfigError, Im2VecError
 from im2vec_cli.events import DataLoaded, Tracing
-from im2vec_cli.outline_aux import (
+from im2vec_cli.raster.bezier import flatten_closed
+from im2vec_cli.training.outline import (
     MIN_PER_RING,
     OUTLINE_POINTS,
     outline_distances,
@@ -20,8 +21,7 @@ from im2vec_cli.outline_aux import (
     outline_points,
     trace_targets,
 )
-from im2vec_cli.raster.bezier import flatten_closed
-from im2vec_cli.train import train
+from im2vec_cli.training.train import train
 from im2vec_cli.vector import VectorImage, VectorShape, rasterize_svg, to_svg
 from tests.helpers import circle, synthetic_shapes
 from tests.test_train import MODEL, _stop_after, fast_cfg

@@ -10,7 +10,7 @@ import torch
 from im2vec_cli.config import ModelConfig, TrainConfig
 from im2vec_cli.errors import DataError
 from im2vec_cli.events import NonFinite, TrainStep
-from im2vec_cli.train import evaluate_l2, train
+from im2vec_cli.training.train import evaluate_l2, train
 from tests.helpers import synthetic_shapes
 
 MODEL = ModelConfig(image_size=32, latent=64, enc_width=16, lstm_hidden=64, code=32, dec_width=64, dec_layers=3,
@@ -279,7 +279,7 @@ def test_sigkill_then_resume_loses_at_most_one_interval(tmp_path, shapes):
 
 def test_nonfinite_loss_is_skipped_and_reported(tmp_path, shapes, monkeypatch):
     """A NaN loss at one step leaves the weights untouched and is logged; training goes on."""
-    import im2vec_cli.train as tr
+    import im2vec_cli.training.train as tr
 
     real = tr.reconstruction_loss
     calls = {"n": 0}
@@ -303,7 +303,7 @@ def test_nonfinite_loss_is_skipped_and_reported(tmp_path, shapes, monkeypatch):
 
 
 def test_nonfinite_loss_weights_unchanged(tmp_path, shapes, monkeypatch):
-    import im2vec_cli.train as tr
+    import im2vec_cli.training.train as tr
 
     real = tr.reconstruction_loss
     monkeypatch.setattr(tr, "reconstruction_loss", lambda *a, **k: (lambda r: (r[0] * float("inf"), r[1], r[2], r[3]))(

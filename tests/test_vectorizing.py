@@ -87,15 +87,15 @@ def test_folders_are_planned_by_their_cost():
     """Two 512 px pictures on two free cores: two workers (each traces one); two 64 px glyphs (the
     model's start costs more than they do): none; ``-j`` wins; a GPU: one process."""
     o = VectorizeOptions()
-    assert parallel.plan(o, [(512, 512)] * 2, 2, most=2)[0] == 2
-    assert parallel.plan(o, [(64, 64)] * 2, 2, most=2)[0] == 1
-    assert parallel.plan(o, [(64, 64)] * 400, 400, most=2)[0] == 2
-    assert parallel.plan(o, [(512, 512)] * 2, 2, most=2, jobs=1)[0] == 1
-    assert parallel.plan(o, [(512, 512)] * 9, 9, most=8, gpu=True)[0] == 1
-    jobs, chunk, heavy = parallel.plan(o, [(512, 512)] * 100, 100, most=2)
+    assert parallel.plan_workers(o, [(512, 512)] * 2, 2, most=2)[0] == 2
+    assert parallel.plan_workers(o, [(64, 64)] * 2, 2, most=2)[0] == 1
+    assert parallel.plan_workers(o, [(64, 64)] * 400, 400, most=2)[0] == 2
+    assert parallel.plan_workers(o, [(512, 512)] * 2, 2, most=2, jobs=1)[0] == 1
+    assert parallel.plan_workers(o, [(512, 512)] * 9, 9, most=8, gpu=True)[0] == 1
+    jobs, chunk, heavy = parallel.plan_workers(o, [(512, 512)] * 100, 100, most=2)
     assert (jobs, chunk, heavy) == (2, 7, False)  # sixteen chunks or more; nothing needs torch
-    assert parallel.plan(o, [(64, 64)] * 100, 100, most=2)[2]  # most need the model: torch before the fork
-    assert parallel.plan(dataclasses.replace(o, effort="draft"), [(64, 64)] * 2, 2, most=2)[2] is False
+    assert parallel.plan_workers(o, [(64, 64)] * 100, 100, most=2)[2]  # most need the model: torch before the fork
+    assert parallel.plan_workers(dataclasses.replace(o, effort="draft"), [(64, 64)] * 2, 2, most=2)[2] is False
 
 
 def test_a_broken_model_is_refused_before_any_picture(tmp_path):

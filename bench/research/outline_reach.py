@@ -1,6 +1,6 @@
 """How much of the held-out pictures' outlines the decoded paths reach (issue 37, the outline loss).
 
-The outline loss (``TrainConfig.outline``, ``src/im2vec_cli/outline_aux.py``) is there to
+The outline loss (``TrainConfig.outline``, ``src/im2vec_cli/training/outline.py``) is there to
 bring a path to every part of the picture, where the renderer's gradient does not reach. This
 measures that directly, for each model given, on a seeded subset of the test split: the
 encoder's guess (``z = mu``) decoded at the model's segment count, and each picture's traced
@@ -30,7 +30,7 @@ sys.path.insert(0, str(ROOT / "src"))
 
 from im2vec_cli.evaluate import eval_files  # noqa: E402
 from im2vec_cli.model.pretrained import from_pretrained  # noqa: E402
-from im2vec_cli.outline_aux import outline_distances, trace_targets  # noqa: E402
+from im2vec_cli.training.outline import outline_distances, trace_targets  # noqa: E402
 
 BATCH = 64
 

@@ -38,16 +38,27 @@ from .vector import VectorImage
 from .vectorizing import ModelRef, check_segments, load_model, vectorize, vectorize_each
 from .vectorizing import model_of as _model
 
-_EXTRAS = ("fit_neighbours", "fit_prior", "train_aux")  # extras.py's, which need torch: loaded at first use
+# Names re-exported from the modules that hold them, imported at first use (most need torch): the
+# doors of the CLI (which imports nothing past api.py, options and the ground floor) and of Python users.
+_LAZY = {
+    "fit_neighbours": "extras", "fit_prior": "extras", "train_aux": "extras",
+    "evaluate_model": "report", "sweep_figure": "report", "test_split_note": "report",
+    "plan_workers": "parallel", "vectorize_chunks": "parallel", "vectorize_on_ray": "rayengine",
+    "list_images": "data.folder", "DEFAULT_CHARS": "data.fonts", "build_fonts": "data.fonts",
+    "build_mnist": "data.mnist", "build_svg_set": "data.svgset",
+    "from_svg": "vector", "render_vector": "vector", "contact_sheet": "vector", "flipbook_svg": "vector",
+    "MAX_SVG_BYTES": "vector.document", "read_svg_bytes": "vector.document",
+}
 __all__ = ["ModelRef", "VectorizeOptions", "check_segments", "decode", "encode", "export", "interpolate", "load_feature_net", "load_model",
-           "prior_latents", "project", "sample", "train", "train_features", "vectorize", "vectorize_each", *_EXTRAS]
+           "prior_latents", "project", "sample", "train", "train_features", "vectorize", "vectorize_each", *_LAZY]
 
 
 def __getattr__(name: str):
-    if name in _EXTRAS:
-        from . import extras
+    if name in _LAZY:
+        import importlib
 
-        return getattr(extras, name)
+        where = importlib.import_module(f"{__package__}.{_LAZY[name]}")
+        return getattr(where, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
@@ -171,7 +182,7 @@ def train(data_dir, run_dir="runs/latest", model_config=None, train_config=None,
     from .model.pretrained import grow_state
     from .options import GROWABLE, fixed_on_init
     from .runtime import resolve_device
-    from .train import train as run_train
+    from .training.train import train as run_train
 
     given = model_config.to_dict() if isinstance(model_config, ModelConfig) else dict(model_config or {})
     t_given = train_config.to_dict() if isinstance(train_config, TrainConfig) else dict(train_config or {})
@@ -211,7 +222,7 @@ def train_features(data_dir, output, *, size: int = 64, fit: str = "resize", ste
     from .data.folder import folder_labels, load_folder, split_dir
     from .errors import Im2VecError
     from .model.features import FeatureConfig
-    from .train_features import JUNK, FeatureSettings, feature_net_score, train_feature_net
+    from .training.features import JUNK, FeatureSettings, feature_net_score, train_feature_net
 
     emit = on_event or (lambda e: None)
     skip = lambda m: emit(Skipped(m))  # noqa: E731

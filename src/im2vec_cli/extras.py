@@ -143,7 +143,7 @@ def train_aux(data_dir, model, output, *, images: int = 2048, steps: int = 3000,
 
     from .files import atomic_write, replace_folder
     from .model.pretrained import save_pretrained, stored_half
-    from .train_aux import AuxSettings, train_segment_predictor
+    from .training.aux import AuxSettings, train_segment_predictor
 
     emit = on_event or (lambda e: None)
     source, model, in_place, data = model_and_images(model, output, overwrite, data_dir, emit)

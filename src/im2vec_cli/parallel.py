@@ -168,7 +168,7 @@ TRACE_MEGAPIXEL = 1.5  # ... and per million pixels
 MODEL_PICTURE = 0.15  # a picture refined or drawn by the model, in a batch
 
 
-def plan(options: VectorizeOptions, sides: list[tuple[int, int] | None], count: int, *, most: int,
+def plan_workers(options: VectorizeOptions, sides: list[tuple[int, int] | None], count: int, *, most: int,
          jobs: int | None = None, gpu: bool = False, chunk: int = 32) -> tuple[int, int, bool]:
     """How to vectorize ``count`` pictures with ``options``: the worker processes (``jobs``, else
     ``plan_jobs``'s; 1 on a GPU or for the model's own paths unrefined; at most one a chunk), the

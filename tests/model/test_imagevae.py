@@ -12,7 +12,7 @@ from im2vec_cli.config import ModelConfig
 from im2vec_cli.evaluate import deformation_off, generation_l2, interpolation_l2, reconstruction_l2, segments_sweep
 from im2vec_cli.model import ImageVAE, build_model
 from im2vec_cli.model.pretrained import from_pretrained, save_pretrained
-from im2vec_cli.train import evaluate_l2, train
+from im2vec_cli.training.train import evaluate_l2, train
 from tests.helpers import TINY, make_tiny_model, run, synthetic_shapes
 
 IVAE = ModelConfig(arch="imagevae", image_size=32, latent=16, enc_width=8)

@@ -124,7 +124,7 @@ def test_fit_prior_writes_the_neighbours_and_drops_stale_ones(two_priors, tmp_pa
 
 def test_train_fits_the_neighbours_and_export_keeps_them_for_those_weights_only(tmp_path):
     from im2vec_cli.model.pretrained import export_checkpoint
-    from im2vec_cli.train import train
+    from im2vec_cli.training.train import train
     from tests.helpers import synthetic_shapes
     from tests.test_train import MODEL, fast_cfg
 

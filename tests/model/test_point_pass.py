@@ -8,12 +8,12 @@ import pytest
 import torch
 
 from im2vec_cli.config import MAX_FEEDBACK, ModelConfig, TrainConfig
-from im2vec_cli.distill import freeze
 from im2vec_cli.errors import Im2VecError, ModelError
 from im2vec_cli.model.points import MAX_MOVE, PointPass, curve_samples, from_samples
 from im2vec_cli.model.pretrained import from_pretrained, grow_state, save_pretrained
 from im2vec_cli.model.vae import COLOR_RIDGE, COLOR_TAU, Im2Vec
 from im2vec_cli.raster import render_coverage, solve_colors
+from im2vec_cli.training.distill import freeze
 from tests.helpers import descend
 
 TINY = dict(image_size=32, latent=16, enc_width=8, lstm_hidden=16, code=8, dec_width=16, dec_layers=3, deform_width=8,

@@ -20,7 +20,7 @@ from im2vec_cli.evaluate import confident_share, features_of, knn_radii, precisi
 from im2vec_cli.model.features import FeatureConfig, FeatureNet
 from im2vec_cli.model.pretrained import save_pretrained
 from im2vec_cli.model.prior import PRIOR_WEIGHTS, LatentPrior, fit_prior
-from im2vec_cli.train_features import JUNK, junk_images
+from im2vec_cli.training.features import JUNK, junk_images
 from im2vec_cli.vector import from_svg, rasterize_svg
 from im2vec_cli.vector.image import VectorImage, VectorShape
 from tests.helpers import make_tiny_model, run, synthetic_shapes
@@ -288,7 +288,7 @@ def test_feature_net_round_trip_and_checks(tmp_path):
 
 def test_train_writes_and_export_copies_the_prior(tmp_path):
     from im2vec_cli.model.pretrained import export_checkpoint, from_pretrained
-    from im2vec_cli.train import train
+    from im2vec_cli.training.train import train
     from tests.test_train import MODEL, fast_cfg
 
     out = train(None, tmp_path / "run", MODEL, fast_cfg(steps=4), images=synthetic_shapes(64, 32))
@@ -324,7 +324,7 @@ def _labelled_folder(root, n=120):
 def test_train_fits_the_prior_with_the_components_its_config_asks(tmp_path):
     """``TrainConfig.prior_components`` (fonts: 62), bounded by one per ``IMAGES_PER_COMPONENT`` images."""
     from im2vec_cli.model.prior import IMAGES_PER_COMPONENT
-    from im2vec_cli.train import train
+    from im2vec_cli.training.train import train
     from tests.test_train import MODEL, fast_cfg
 
     shapes = synthetic_shapes(3 * IMAGES_PER_COMPONENT, 32)  # 80% train: room for 2 components

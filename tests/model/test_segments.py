@@ -14,7 +14,7 @@ from im2vec_cli.infer import model_input, to_vector, vectorize
 from im2vec_cli.model.pretrained import from_pretrained
 from im2vec_cli.model.segments import K_MIN, SegmentPredictor, choose_segments, curve, fit_loss
 from im2vec_cli.raster import render_paths
-from im2vec_cli.train_aux import AuxSettings, train_segment_predictor
+from im2vec_cli.training.aux import AuxSettings, train_segment_predictor
 from tests.helpers import TINY, check_svg, make_tiny_model, png, run, synthetic_shapes
 
 ROOT = Path(__file__).resolve().parents[2]

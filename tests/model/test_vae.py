@@ -8,7 +8,7 @@ from im2vec_cli.errors import Im2VecError, ModelError
 from im2vec_cli.model.decoder import PathDecoder
 from im2vec_cli.model.pretrained import from_pretrained, save_pretrained
 from im2vec_cli.model.vae import Im2Vec
-from im2vec_cli.train import TrainState
+from im2vec_cli.training.train import TrainState
 from tests.helpers import descend
 
 TINY = dict(image_size=32, latent=16, enc_width=8, lstm_hidden=16, code=8, dec_width=16, dec_layers=3, deform_width=8)

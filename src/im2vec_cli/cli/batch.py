@@ -48,7 +48,7 @@ def expand_inputs(inputs: Iterable[str]) -> list[Item]:
 
     What a folder holds under an image name that is not a regular file (a FIFO, a device, a
     broken link) is skipped with a warning; ``-`` (stdin) is an input only alone."""
-    from ..data.folder import list_images
+    from ..api import list_images
 
     inputs = list(inputs)
     if "-" in inputs and len(inputs) > 1:

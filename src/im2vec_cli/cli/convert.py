@@ -139,12 +139,12 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, toleranc
 
 
 def _jobs(jobs, items, options, free: int, gpu: bool) -> tuple[int, int, bool]:
-    """``parallel.plan``'s workers (``-j``, else as many as finish soonest by the sizes of up to
+    """``parallel.plan_workers``'s workers (``-j``, else as many as finish soonest by the sizes of up to
     ``PLAN_SAMPLE`` pictures; 1 on a GPU), pictures a chunk, and whether most pictures need the model."""
-    from .. import parallel
+    from .. import api
 
     sides = [_picture_size(item) for item, _ in items[:PLAN_SAMPLE]]
-    return parallel.plan(options, sides, len(items), most=min(free, MAX_AUTO_JOBS), jobs=jobs, gpu=gpu,
+    return api.plan_workers(options, sides, len(items), most=min(free, MAX_AUTO_JOBS), jobs=jobs, gpu=gpu,
                          chunk=VECTORIZE_CHUNK)
 
 
@@ -192,13 +192,13 @@ def _on_ray(model_name, jobs, address, device, seed, options, write):
     each SVG written here as it comes back (the local run's names, atomically)."""
     import os
 
-    from .. import rayengine
+    from .. import api
 
     model_ref = os.path.abspath(model_name) if os.path.isdir(model_name) else model_name  # actors' cwd differs
 
     def work(group):
         by_path = {os.path.abspath(item): item for item, _ in group}
-        for path, result in rayengine.vectorize_on_ray(list(by_path), model_ref, options, jobs=jobs, address=address,
+        for path, result in api.vectorize_on_ray(list(by_path), model_ref, options, jobs=jobs, address=address,
                                                        device=device, seed=seed):
             item = by_path[path]
             yield write(item, Im2VecError(str(result).replace(path, item)) if isinstance(result, Exception) else result)
@@ -272,7 +272,7 @@ def _in_process(model, options, write, single: bool = False):
 def _in_pool(model_name, jobs, threads, device, seed, options, write, size=VECTORIZE_CHUNK, heavy=True):
     """``vectorize``'s work on all inputs at once, in chunks of ``size`` over ``jobs`` worker processes of
     ``threads`` threads (``heavy``: some pictures need the model, imported before the workers fork)."""
-    from .. import parallel
+    from .. import api
 
     def work(group):
         names, bad = collections.deque(), []
@@ -290,8 +290,8 @@ def _in_pool(model_name, jobs, threads, device, seed, options, write, size=VECTO
             warn(f"a worker process died{how} with {event.pictures} pictures in hand: they are vectorized again, "
                  "a chunk at a time")
 
-        for vecs in parallel.vectorize_chunks(chunks(), model_name, jobs=jobs, threads=threads, device=device,
-                                              seed=seed, options=options, on_event=died, model=heavy):
+        for vecs in api.vectorize_chunks(chunks(), model_name, jobs=jobs, threads=threads, device=device,
+                                         seed=seed, options=options, on_event=died, model=heavy):
             yield from bad
             bad.clear()
             for item, vec in zip(names.popleft(), vecs):
@@ -375,11 +375,10 @@ def encode(ctx, inputs, output, fmt, fit, model_name, device, seed):
               help="Edge softness in output pixels.")
 def render(svg_file, output, scale, tau):
     """Render an SVG of closed cubic paths to PNG with im2vec's own differentiable rasterizer."""
+    from .. import api
     from ..files import tensor_to_png
-    from ..vector import from_svg, render_vector
-    from ..vector.document import MAX_SVG_BYTES, read_svg_bytes
 
     refuse_overwrite([output], [svg_file])
     refuse_misnamed(output, "PNG")
-    image = from_svg(read_svg_bytes(read_input(svg_file, limit=MAX_SVG_BYTES), svg_file))
-    write_output(output, tensor_to_png(render_vector(image, scale=scale, tau=tau)))
+    image = api.from_svg(api.read_svg_bytes(read_input(svg_file, limit=api.MAX_SVG_BYTES), svg_file))
+    write_output(output, tensor_to_png(api.render_vector(image, scale=scale, tau=tau)))

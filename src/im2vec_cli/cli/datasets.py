@@ -45,7 +45,7 @@ def data_fonts(out, fonts, chars, size, margin, workers, overwrite):
 
     Broken, incomplete, pixel and dingbat fonts are skipped and listed in OUT/report.json.
     """
-    from ..data.fonts import DEFAULT_CHARS, build_fonts
+    from ..api import DEFAULT_CHARS, build_fonts
     from ..runtime import progress
 
     rep = _built_whole(out, overwrite, lambda tmp: build_fonts(
@@ -62,7 +62,7 @@ def data_fonts(out, fonts, chars, size, margin, workers, overwrite):
 @OVERWRITE
 def data_mnist(out, source, idx_dir, overwrite):
     """MNIST digits as PNGs (white background, dark digit), 50k/10k/10k with labels."""
-    from ..data.mnist import build_mnist
+    from ..api import build_mnist
     from ..runtime import progress
 
     counts = _built_whole(out, overwrite,
@@ -79,7 +79,7 @@ def data_mnist(out, source, idx_dir, overwrite):
 @OVERWRITE
 def data_svg(out, src, size, colors, overwrite):
     """Rasterise a folder of SVGs (emoji, icons) onto white, keeping each SVG as ground truth."""
-    from ..data.svgset import build_svg_set
+    from ..api import build_svg_set
     from ..runtime import progress
 
     rep = _built_whole(out, overwrite, lambda tmp: build_svg_set(tmp, src, size=size, colors=colors,

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import click
 
-from ..errors import Im2VecError
 from ..options import PRIORS
 from .app import EXIT_HELP, cli, warn
 from .options import load_model, model_options, nonempty, parse_segments, parse_sweep
@@ -30,31 +29,6 @@ def markdown_table(res: dict, with_train: bool) -> str:
     if "paths" in res:
         lines += [f"| paths / segments per image | {res['paths']:.2f} / {res['segments']:.1f} | {res['images']} |"]
     return "\n".join(lines) + "\n"
-
-
-def _sweeps(model, files, ks) -> dict:
-    from ..evaluate import segments_sweep
-
-    out = {"segments_sweep": segments_sweep(model, files, ks)}
-    if model.decoder.deform is not None:
-        out["segments_sweep_deform_off"] = segments_sweep(model, files, ks, deform=False)
-    return out
-
-
-def _sample_quality(model, features_dir, data_dir, samples, seed, prior, segments) -> dict:
-    """``evaluate.sample_quality`` against a seeded subset of as many test images as samples
-    (apart from ``--limit``), with the feature net's provenance."""
-    from .. import api
-    from ..evaluate import eval_files, sample_quality
-    from ..files import load_image
-
-    net = api.load_feature_net(features_dir)
-    pictures = [load_image(f) for f in eval_files(data_dir, samples, seed)]
-    try:
-        out = sample_quality(model, net, pictures, samples=samples, seed=seed, prior=prior, segments=segments)
-    except Im2VecError as exc:
-        raise Im2VecError(f"{features_dir}: {exc}") from None
-    return {**out, "features": str(features_dir), "features_test_accuracy": net.config.test_accuracy}
 
 
 @cli.command("eval", epilog=EXIT_HELP)
@@ -98,8 +72,7 @@ def eval_cmd(data_dir, limit, train_dir, samples, pairs, segments, fit, output, 
     """
     import json
 
-    from ..data.folder import load_folder, split_dir
-    from ..evaluate import eval_files, generation_l2, held_out_l2, interpolation_l2, reconstruction_l2, sweep_plot
+    from .. import api
 
     if plot and not sweep:
         raise click.UsageError("--plot needs --sweep")
@@ -112,40 +85,15 @@ def eval_cmd(data_dir, limit, train_dir, samples, pairs, segments, fit, output, 
         raise click.UsageError("--sweep: the ImageVAE baseline has no segments")
     if fit and model.raster_output:
         raise click.UsageError("--fit: the ImageVAE baseline draws pixels, it has no paths to fit")
-    res = {"model": getattr(model, "name", model_name), "arch": model.config.arch}
-    skipped = lambda msg: warn(f"skipped {msg}")  # noqa: E731
-    _check_test_split(data_dir)
-    files = eval_files(data_dir, limit, seed, on_skip=skipped)
-    res.update(reconstruction_l2(model, files, segments=k, on_skip=skipped, fit=fit), **({"fit": True} if fit else {}))
-    if train_dir:
-        train, _ = load_folder(split_dir(train_dir, "train"), model.config.image_size, fit=model.config.fit,
-                               on_skip=skipped)
-        res["train_images"] = len(train)
-        res.update(generation_l2(model, train, samples=samples, seed=seed, segments=k, prior=prior))
-        res.update(held_out_l2(files, train, model.config.image_size, model.config.fit))
-        res.update(interpolation_l2(model, train, pairs=pairs, seed=seed, segments=k))
-    if ks:
-        res.update(_sweeps(model, files, ks))
-    if features_dir:
-        res.update(_sample_quality(model, features_dir, data_dir, samples, seed, prior, k))
+    note = api.test_split_note(data_dir)
+    if note:
+        warn(note)
+    res = api.evaluate_model(model, data_dir, limit=limit, train_dir=train_dir, samples=samples, pairs=pairs,
+                             segments=k, fit=fit, sweep=ks, features_dir=features_dir, prior=prior, seed=seed,
+                             on_skip=lambda msg: warn(f"skipped {msg}"))
+    res["model"] = getattr(model, "name", model_name)
     write_output(output, json.dumps(res, indent=1) + "\n")
     if plot:
-        series = {"sample deformation": res["segments_sweep"]}
-        if "segments_sweep_deform_off" in res:
-            series["deformation off at inference"] = res["segments_sweep_deform_off"]
-        write_output(plot, sweep_plot(series, f"{res['model']}: {res['images']} test images"))
+        write_output(plot, api.sweep_figure(res))
     if markdown:
         write_output(markdown, markdown_table(res, bool(train_dir)))
-
-
-def _check_test_split(data_dir) -> None:
-    """`eval` scores a dataset's test split: a dataset with train/ but no test/ is refused, and a
-    plain folder of images is scored whole, with a warning (it was scored silently, training
-    images included)."""
-    from pathlib import Path
-
-    if (Path(data_dir) / "test").is_dir():
-        return
-    if (Path(data_dir) / "train").is_dir():
-        raise Im2VecError(f"{data_dir}: has train/ but no test/; eval scores the test split (give a folder with test/)")
-    warn(f"{data_dir} has no test/ folder: every image in it is scored, any the model trained on included")

@@ -54,7 +54,7 @@ def check_set_output(output: str, count: int) -> None:
 def write_set(output: str, stem: str, images, count: int) -> None:
     """``OUT/<stem>_<i>.svg`` for each of ``count`` images, written as they come, and
     ``OUT/contact.png`` of the first ``CONTACT_MAX``; with ``-o -`` the one SVG to stdout."""
-    from ..vector import contact_sheet
+    from ..api import contact_sheet
 
     check_set_output(output, count)
     if output == "-":
@@ -145,7 +145,7 @@ def interpolate(a, b, steps, output, segments, animate, parts, fit, model_name, 
     from pathlib import Path
 
     from .. import api
-    from ..vector import flipbook_svg
+    from ..api import flipbook_svg
 
     check_set_output(output, steps + 2)
     names = [f"frame_{i:0{len(str(steps + 1))}d}.svg" for i in range(steps + 2)] + ["contact.png", "morph.svg"]

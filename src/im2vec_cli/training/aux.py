@@ -13,10 +13,10 @@ from collections.abc import Callable
 
 import torch
 
-from .events import AuxStep
-from .model.segments import SWEEP, SegmentPredictor, curve, fit_loss
-from .model.vae import Im2Vec
-from .raster import render_coverage
+from ..events import AuxStep
+from ..model.segments import SWEEP, SegmentPredictor, curve, fit_loss
+from ..model.vae import Im2Vec
+from ..raster import render_coverage
 
 
 @torch.no_grad()

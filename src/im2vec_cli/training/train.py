@@ -28,13 +28,12 @@ import torch
 import torch.distributed as dist
 from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
 
-from .checkpoint import load_checkpoint, prepare_run_dir, save_checkpoint
-from .config import ModelConfig, TrainConfig
-from .data.augment import augment_batch
-from .data.folder import find_split_dirs, load_folder, split_indices
-from .distill import Teacher, distill_loss, freeze, load_or_fit_teacher
-from .errors import DataError, Im2VecError, TrainingError
-from .events import (
+from ..checkpoint import load_checkpoint, prepare_run_dir, save_checkpoint
+from ..config import ModelConfig, TrainConfig
+from ..data.augment import augment_batch
+from ..data.folder import find_split_dirs, load_folder, split_indices
+from ..errors import DataError, Im2VecError, TrainingError
+from ..events import (
     DataLoaded,
     Event,
     NonFinite,
@@ -48,15 +47,16 @@ from .events import (
     TrainStep,
     Validated,
 )
-from .files import atomic_write
-from .model import build_model, flatten_rnns
-from .model.losses import reconstruction_loss
-from .model.pretrained import save_pretrained, save_priors
-from .model.prior import IMAGES_PER_COMPONENT, fit_neighbours, fit_prior, most_neighbours, posterior_means
-from .optim import Lookahead
-from .outline_aux import Outlines, trace_targets
-from .runtime import HeldSignals, setup_distributed
-from .train_eval import evaluate_l2, preview_grid
+from ..files import atomic_write
+from ..model import build_model, flatten_rnns
+from ..model.losses import reconstruction_loss
+from ..model.pretrained import save_pretrained, save_priors
+from ..model.prior import IMAGES_PER_COMPONENT, fit_neighbours, fit_prior, most_neighbours, posterior_means
+from ..optim import Lookahead
+from ..runtime import HeldSignals, setup_distributed
+from .distill import Teacher, distill_loss, freeze, load_or_fit_teacher
+from .outline import Outlines, trace_targets
+from .validate import evaluate_l2, preview_grid
 
 MAX_NONFINITE_IN_A_ROW = 20  # skipped steps before training stops with an error
 MIN_IMAGES = 2  # one to train on, one to validate

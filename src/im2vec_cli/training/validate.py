@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import torch
 
-from .files import encode_png
-from .model.losses import reconstruction_loss
-from .model.pretrained import unwrap_model
-from .model.vae import Im2Vec
+from ..files import encode_png
+from ..model.losses import reconstruction_loss
+from ..model.pretrained import unwrap_model
+from ..model.vae import Im2Vec
 
 __all__ = ["evaluate_l2", "preview_grid"]
 

@@ -26,10 +26,10 @@ from pathlib import Path
 import torch
 import torch.distributed as dist
 
-from .checkpoint import TEACHER_FILE
-from .errors import Im2VecError
-from .files import atomic_write
-from .project import LATENT, project_frames
+from ..checkpoint import TEACHER_FILE
+from ..errors import Im2VecError
+from ..files import atomic_write
+from ..project import LATENT, project_frames
 
 TEACHER_BATCH = 64  # pictures fitted at once
 

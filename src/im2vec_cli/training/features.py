@@ -18,8 +18,8 @@ from collections.abc import Callable
 import torch
 import torch.nn.functional as F
 
-from .events import FeatureStep
-from .model.features import WORK_SIZE, FeatureConfig, FeatureNet
+from ..events import FeatureStep
+from ..model.features import WORK_SIZE, FeatureConfig, FeatureNet
 
 
 @dataclasses.dataclass(frozen=True)

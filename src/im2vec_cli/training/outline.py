@@ -26,10 +26,10 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from .errors import TraceError
-from .raster.bezier import flatten_closed
-from .trace.fit import resample
-from .trace.regions import trace
+from ..errors import TraceError
+from ..raster.bezier import flatten_closed
+from ..trace.fit import resample
+from ..trace.regions import trace
 
 OUTLINE_POINTS = 256  # points per picture's outline (M)
 MIN_PER_RING = 6  # points each ring gets at least (a small hole still pulls)
