@@ -67,6 +67,9 @@ class Plan:
     speckle: int | None = None  # px (None: by the picture's size, ``trace.read``)
     work_pixels: int = MAX_WORK_PIXELS  # a larger picture is vectorized at an area-averaged copy this large
     # the optimisation (``refine``)
+    passes: bool = True  # refinement's start drawn through the model's picture door (``Im2Vec.decode`` with the
+    # picture: its path and point passes, colours solved: what --no-refine draws) rather than from the latent
+    # alone (the latent door), once the latent stage has run
     latent_steps: int = 10
     point_steps: int = 50
     latent_lr: float = 0.05

@@ -232,3 +232,25 @@ def test_the_outline_polish_holds_the_points_hidden_under_the_shapes_above():
     out = _Fitter(img[None], 8, Plan()).fit_points([vec], 30, 0.3, True, "outline", None, smooth=[flags])[0][0]
     moved = np.abs(out.shapes[0].contours[0] - square).max(-1)
     assert moved[held].max() < 1e-5 and moved[~held].max() > 0.5
+
+
+@pytest.mark.skipif(not (REPO_MODELS / "fonts" / "config.json").exists(), reason="no shipped fonts model")
+def test_refinement_starts_where_the_model_draws_the_picture():
+    """The model's two doors: refinement's start (``Plan.passes``, the default) is the picture door,
+    what ``--no-refine --parts model`` draws (``infer.vectorize``: the feedback, path and point passes),
+    point for point; from the latent alone (``passes=False``) the same glyph is drawn worse."""
+    from im2vec_cli.infer import vectorize as guess
+    from im2vec_cli.refine import Refinement
+
+    model = from_pretrained("fonts")
+    img = load_image(sorted(ASSETS.glob("*.png"))[3])
+    starts = {}
+    for passes in (True, False):
+        run = Refinement(model, [img], Plan(parts="model", passes=passes))
+        mu, place, k = run.encode([0], None, None)
+        starts[passes] = run.decode(mu, k, place, None, [0])[0]
+    drawn = guess(model, [img])[0]
+    assert len(starts[True].shapes) == len(drawn.shapes)
+    for a, b in zip(starts[True].shapes, drawn.shapes):
+        assert all(np.allclose(p, q, atol=1e-5) for p, q in zip(a.contours, b.contours))
+    assert _cairo_mse(starts[True], img) < _cairo_mse(starts[False], img)
