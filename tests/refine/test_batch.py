@@ -1,4 +1,4 @@
-"""Test-time refinement (issue "Vectorize fidelity"): it lowers the loss against the input,
+"""refine/batch.py: test-time refinement (issue "Vectorize fidelity") lowers the loss against the input,
 handles inputs of other sizes than the model's, and keeps the SVG valid."""
 
 import dataclasses

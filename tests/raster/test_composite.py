@@ -1,5 +1,7 @@
-"""``raster.solve_colors``: the layer colours closest to a picture under ``composite_over``;
-``raster.solve_order``: their order, scored with its colours solved."""
+"""raster/composite.py: ``composite_over`` against the "over" operator applied layer by layer here;
+``solve_colors``: the layer colours closest to a picture under ``composite_over``; ``solve_order``:
+their order, scored with its colours solved. (``composite_soft``'s convexity, its limit and its
+gradient: tests/raster/test_render.py.)"""
 
 import itertools
 
@@ -17,6 +19,19 @@ def _layers(seed: int, b: int = 2, g: int = 4, size: int = 12):
     depth = torch.rand(b, g, generator=gen, dtype=torch.float64)
     colors = torch.rand(b, g, 3, generator=gen, dtype=torch.float64)
     return cov, depth, colors
+
+
+def test_over_is_the_over_operator_back_to_front():
+    cov, depth, colors = _layers(3)
+    out = composite_over(cov, colors, depth, background=0.8)
+    assert out.shape == (2, 3, 12, 12)
+    for i in range(2):
+        ref = torch.full((3, 12, 12), 0.8, dtype=torch.float64)
+        for g in torch.argsort(depth[i]).tolist():  # the farthest first
+            ref = ref * (1 - cov[i, g]) + cov[i, g] * colors[i, g][:, None, None]
+        torch.testing.assert_close(out[i], ref)
+    with pytest.raises(ValueError):
+        composite_over(cov, colors[:, :3], depth)
 
 
 def test_recovers_the_colours_a_picture_was_composited_with():
