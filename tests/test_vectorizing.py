@@ -71,7 +71,7 @@ def test_a_small_picture_loads_the_model_a_large_one_does_not(tmp_path):
 
 
 def test_the_traced_way_gives_what_refinement_gives(tmp_path):
-    """A picture traced alone (``trace.trace_alone``) gets the SVG that refinement's own batch
+    """A picture traced alone (``refine.clean.trace_alone``) gets the SVG that refinement's own batch
     (``refine.refine_batch``, the renderer at hand) gives it: the two ways are one pipeline."""
     from im2vec_cli.options import effort_plan
     from im2vec_cli.refine import refine_batch

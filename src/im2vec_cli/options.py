@@ -95,7 +95,7 @@ class Plan:
     polish_steps: int = 40  # points-only steps after simplifying
     polish_samples: int = 12  # lines per cubic in the polish: merged segments are long, and too coarse a
     # polygon lets the fit bend the true curve away from the edge (IoU@4x 0.972 with the model's 4)
-    # clean outlines (``trace.clean_outlines``)
+    # clean outlines (``refine.clean.clean_outlines``)
     tolerance: float = 0.5  # cubics fitted within this many input px of the traced/united ring
     outline_steps: int = 40  # points (and colours) polished against the input (0: not polished)...
     outline_tau: float = 0.3  # ...from this edge softness, annealed to tau_end

@@ -3,7 +3,7 @@ first use (``ModelRef``).
 
 Stages: each picture as an array (``files.as_picture``) -> with clean parts, read
 (``trace.read_pictures``) -> the pictures that are not polished (larger than the polish's size,
-pixel art, photos, ``effort="draft"``) traced without the renderer (``trace.trace_alone``: NumPy,
+pixel art, photos, ``effort="draft"``) traced without the renderer (``refine.clean.trace_alone``: NumPy,
 no torch, no model) and the others refined through it (``refine.refine_batch``) -> each result
 with its notes. ``--parts model`` and ``--no-refine`` always use the model. Re-exported by
 ``api.py``; nothing here prints or exits.
@@ -119,7 +119,7 @@ def _guessed(model, pictures: list[np.ndarray], plan: Plan) -> list[VectorImage]
 def _refined(model, pictures: list[np.ndarray], plan: Plan, on_event=None) -> list[VectorImage]:
     """``vectorize`` with refinement: each result with its ``notes`` (``_notes``). With clean parts
     the pictures are read first; those that are not polished are traced here without the renderer
-    (``trace.trace_alone``), the others refined (``refine.refine_batch``, given their readings)."""
+    (``refine.clean.trace_alone``), the others refined (``refine.refine_batch``, given their readings)."""
     out: list = [None] * len(pictures)
     rest, readings = list(range(len(pictures))), None
     if plan.parts == "clean":
@@ -129,8 +129,10 @@ def _refined(model, pictures: list[np.ndarray], plan: Plan, on_event=None) -> li
         if alone:
             if on_event and not rest:
                 on_event(Stage("read"))
-            got = trace.trace_alone([readings[i] for i in alone], [pictures[i].shape[:2] for i in alone], plan,
-                                    on_stage=on_event)
+            from .refine.clean import trace_alone  # (NumPy only: no torch)
+
+            got = trace_alone([readings[i] for i in alone], [pictures[i].shape[:2] for i in alone], plan,
+                              on_stage=on_event)
             for i, r in zip(alone, got):
                 out[i] = r
     if rest:

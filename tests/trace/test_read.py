@@ -12,8 +12,7 @@ from PIL import Image
 from scipy.ndimage import distance_transform_edt, gaussian_filter
 
 from im2vec_cli import api
-from im2vec_cli.options import Plan
-from im2vec_cli.trace import background_color, clean_outlines, read, two_tone
+from im2vec_cli.trace import background_color, read, two_tone
 from im2vec_cli.trace.read import despeckled, noise_sigma, pixel_block, stroke_width
 from im2vec_cli.vector import rasterize_svg
 from tests.trace.outlines import needs_fonts, svg_of, topology
@@ -145,21 +144,6 @@ def test_a_photo_is_posterised():
     photo = np.asarray(Image.fromarray(skimage.data.astronaut()).resize((128, 128), Image.LANCZOS)) / 255.0
     r = read(photo)
     assert r.kind == "photo" and r.colors is not None and not r.polish
-
-
-class NoRenderer:
-    def loss(self, vecs, index):
-        raise AssertionError("a draft renders nothing")
-
-    def polish_outline(self, vecs, flags, index):
-        raise AssertionError("a draft polishes nothing")
-
-
-def test_a_draft_traces_and_fits_without_rendering():
-    clean = drawing(64)
-    (vec, info), = clean_outlines([clean], NoRenderer(), Plan(outline_steps=0))
-    back = rasterize_svg(vec.to_svg(), 64, 64)
-    assert iou(back.mean(-1) < 0.5, clean.mean(-1) < 0.5) > 0.95 and info["loss_end"] is None
 
 
 @pytest.mark.parametrize("preset", ["scan", "logo", "line", "pixel", "photo"])

@@ -23,6 +23,9 @@ from ..options import PARTS
 
 _WHERE = {
     "REFINE_BATCH": "batch",
+    "clean_outlines": "clean",
+    "model_paths": "stages",
+    "trace_alone": "clean",
     "Refinement": "stages",
     "refine": "batch",
     "refine_batch": "batch",

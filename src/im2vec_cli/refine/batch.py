@@ -1,9 +1,10 @@
-"""The batch driver of refinement: ``refine`` and ``refine_batch``, the model-path run, and the
-clean-outline run (``trace.clean_outlines``, polished by a ``Refinement``)."""
+"""The batch driver of refinement: ``refine`` and ``refine_batch``: pictures read, flat ones set
+aside, the others grouped by size and refined a batch at a time, each batch one ``Refinement``
+(the model's paths, ``stages.model_paths``, or clean outlines polished by it, ``clean.clean_outlines``),
+and each result scaled back to its picture's frame."""
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Callable
 
 import numpy as np
@@ -12,10 +13,11 @@ import torch
 from ..events import Event, Stage
 from ..model.vae import Im2Vec
 from ..options import PARTS, Plan
-from ..trace import Reading, clean_outlines, flat_result, read_pictures, simplify
-from ..trace.batch import FLAT_SUMMARY, workable
+from ..trace import FLAT_SUMMARY, Reading, flat_result, read_pictures
+from ..trace.batch import workable
 from ..vector import VectorImage
-from .stages import Refinement
+from .clean import clean_outlines
+from .stages import Refinement, model_paths
 
 REFINE_BATCH = 32  # images refined together (one render per step); bounds the memory of a batch
 
@@ -34,7 +36,7 @@ def refine(model: Im2Vec, image: torch.Tensor, plan: Plan = Plan(), *,
       with the pieces and holes of a two-tone image that the model missed added or cut out;
     - the image's own regions traced (``trace.traced``; ``plan.colors`` sets the palette).
 
-    (The stage list of clean outlines is ``trace.clean_outlines``; ``Refinement`` is its polisher.)
+    (The stage list of clean outlines is ``clean.clean_outlines``; ``Refinement`` polishes them.)
 
     Both are shapes of non-overlapping outer contours and holes, fitted with cubics within
     ``plan.tolerance`` input pixels, corners kept sharp. ``plan.segments`` / ``plan.quality`` as in
@@ -96,10 +98,8 @@ def _refined(model: Im2Vec, images: list[torch.Tensor], plan: Plan, on_step, rea
     """One batch of images of one size refined: the model's paths, or clean outlines polished by it."""
     run = Refinement(model, images, plan, on_step)
     if plan.parts == "model":
-        return _model_paths(run, list(range(len(images))), plan)
-    pics = [_array(im) for im in run.images]
-    return clean_outlines(pics, run, plan, readings=readings, on_stage=on_step,
-                          model_paths=functools.partial(_model_paths, run, plan=plan, outline=True))
+        return model_paths(run, list(range(len(images))), plan)
+    return clean_outlines([_array(im) for im in run.images], run, plan, readings=readings, on_stage=on_step)
 
 
 def _sizes(images: list[torch.Tensor], parts: str) -> list[tuple[int, int]]:
@@ -136,31 +136,3 @@ def _array(image: torch.Tensor) -> np.ndarray:
 def _tensor(picture: np.ndarray, like: torch.Tensor) -> torch.Tensor:
     """``picture (H, W, 3)`` -> ``(3, H, W)`` of ``like``'s dtype and device."""
     return torch.from_numpy(np.ascontiguousarray(picture.transpose(2, 0, 1))).to(like)
-
-
-def _model_paths(run: Refinement, index: list[int], plan: Plan, outline: bool = False
-                 ) -> list[tuple[VectorImage, dict]]:
-    """The model's paths of the images ``index`` refined (``parts="model"``; ``plan.segments``,
-    ``plan.quality`` and ``plan.max_paths`` shape them); never worse than the model's guess.
-
-    ``outline``: stop after the point stage (the paths are then united and refitted)."""
-    mu, place, k = run.encode(index, plan.segments, plan.quality)
-    z, latent_steps = run.fit_latent(mu, k, place, index)
-    guess = run.decode(z, k, place, plan.max_paths, index)
-    start = run.loss(guess, index)
-    vecs, point_steps = run.fit_points(guess, index)
-    info = [{"loss_start": a, "latent_steps": b, "point_steps": c} for a, b, c in zip(start, latent_steps, point_steps)]
-    if outline:
-        return list(zip(vecs, info))
-    vecs = run.prune(vecs, index)
-    fitted = [v.num_segments for v in vecs]
-    vecs, polish_steps = run.simplify_and_polish(vecs, index)
-    end = run.loss(vecs, index)
-    out = []
-    for j, v in enumerate(vecs):
-        e = end[j]
-        if e > start[j]:  # refinement never makes the result worse than the model's guess
-            v, e = simplify(guess[j], run.s.simplify_tol), start[j]
-        out.append((v, {**info[j], "loss_end": e, "polish_steps": polish_steps[j], "segments_fitted": fitted[j],
-                        "segments": v.num_segments}))
-    return out

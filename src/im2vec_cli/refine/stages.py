@@ -115,3 +115,31 @@ class Refinement:
     def loss(self, vecs: list[VectorImage], index: list[int]) -> list[float]:
         """The judge: pyramid L2 at ``tau_end`` with ``polish_samples`` lines per cubic."""
         return self.fine.vector_loss(vecs, self.s.tau_end, index)
+
+
+def model_paths(run: Refinement, index: list[int], plan: Plan, outline: bool = False
+                 ) -> list[tuple[VectorImage, dict]]:
+    """The model's paths of the images ``index`` refined (``parts="model"``; ``plan.segments``,
+    ``plan.quality`` and ``plan.max_paths`` shape them); never worse than the model's guess.
+
+    ``outline``: stop after the point stage (the paths are then united and refitted)."""
+    mu, place, k = run.encode(index, plan.segments, plan.quality)
+    z, latent_steps = run.fit_latent(mu, k, place, index)
+    guess = run.decode(z, k, place, plan.max_paths, index)
+    start = run.loss(guess, index)
+    vecs, point_steps = run.fit_points(guess, index)
+    info = [{"loss_start": a, "latent_steps": b, "point_steps": c} for a, b, c in zip(start, latent_steps, point_steps)]
+    if outline:
+        return list(zip(vecs, info))
+    vecs = run.prune(vecs, index)
+    fitted = [v.num_segments for v in vecs]
+    vecs, polish_steps = run.simplify_and_polish(vecs, index)
+    end = run.loss(vecs, index)
+    out = []
+    for j, v in enumerate(vecs):
+        e = end[j]
+        if e > start[j]:  # refinement never makes the result worse than the model's guess
+            v, e = simplify(guess[j], run.s.simplify_tol), start[j]
+        out.append((v, {**info[j], "loss_end": e, "polish_steps": polish_steps[j], "segments_fitted": fitted[j],
+                        "segments": v.num_segments}))
+    return out

@@ -3,24 +3,22 @@
 art, photos, ``--effort draft``), in NumPy alone, so that such a picture never imports torch.
 
 Stages: ``workable`` (a picture over the pixel budget at an area-averaged copy) -> ``read`` ->
-``flat_result`` (one colour: nothing to trace) -> ``clean_outlines`` with no polisher -> each
-result on its picture's own canvas. ``refine.refine_batch`` runs the same stages with the
-renderer for the pictures it polishes. Frame: each picture's pixel frame; pictures are
+``flat_result`` (one colour: nothing to trace); ``needs_renderer`` says which pictures are
+polished. ``refine.clean`` runs the clean outlines of the others without the renderer
+(``trace_alone``) and of these with it (``refine_batch``). Frame: each picture's pixel frame; pictures are
 ``(H, W, 3)`` arrays in [0, 1].
 """
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
 
 import numpy as np
 
-from ..events import Stage
 from ..options import Plan
 from ..raster.curves import line_controls
 from ..vector import VectorImage, VectorShape
-from .pipeline import clean_outlines, polished
+from .pipeline import polished
 from .read import Reading, read
 
 UNIFORM_TOL = 2 / 255  # a picture whose pixels all lie within this of each other is one flat colour
@@ -86,25 +84,3 @@ def read_pictures(pictures: list[np.ndarray], s: Plan) -> list[Reading]:
 def needs_renderer(readings: list[Reading], s: Plan) -> list[bool]:
     """Per reading, whether its picture is polished through the renderer (not flat, ``polished``)."""
     return [polished(r, r.picture.shape, s) and uniform_color(r.picture) is None for r in readings]
-
-
-def trace_alone(readings: list[Reading], sizes: list[tuple[int, int]], s: Plan, *,
-                on_stage: Callable[[Stage], None] | None = None) -> list[tuple[VectorImage, dict]]:
-    """The clean outlines (``s``: the run's ``options.Plan``) of pictures read as ``readings`` that
-    none is polished (``needs_renderer`` false for each), each on its ``sizes (H, W)`` canvas, with
-    its summary (as ``refine.refine_batch`` gives it: the kind it was read as, and how)."""
-    out: list = [None] * len(readings)
-    todo = []
-    for i, r in enumerate(readings):
-        flat = flat_result(r.picture)
-        if flat is not None:
-            out[i] = (flat, dict(FLAT_SUMMARY))
-        else:
-            todo.append(i)
-    if todo:
-        got = clean_outlines([readings[i].picture for i in todo], None, s, readings=[readings[i] for i in todo],
-                             on_stage=on_stage)
-        for i, r in zip(todo, got):
-            out[i] = r
-    return [(v.rescaled(w, h), {**info, "kind": r.kind, "reading": r.figures or {}})
-            for (v, info), (h, w), r in zip(out, sizes, readings)]
