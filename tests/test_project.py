@@ -30,6 +30,7 @@ def _svg_l2(vecs: list[VectorImage], images: list[torch.Tensor], model) -> np.nd
                             ** 2).mean()) for v, im in zip(vecs, images)])
 
 
+@pytest.mark.slow  # fits 16 glyphs, about 10 s: make test-slow
 def test_fitted_projection_lowers_the_error_on_the_test_split(fonts):
     files = sorted(ASSETS.glob("*.png"))[::8]  # 8 test-split glyphs the model never trained on
     images = [load_image(f) for f in files]

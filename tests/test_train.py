@@ -40,6 +40,7 @@ def _png_folder(folder, images):
     return folder
 
 
+@pytest.mark.slow  # a real training run, about 20 s: make test-slow
 def test_learning_cuts_val_loss_5x(tmp_path, shapes):
     cfg = fast_cfg(steps=500, batch=16, lr=5e-3, beta=0.0, val_every=500, ckpt_every=500, preview_every=500,
                    val_fraction=0.1)
@@ -55,7 +56,7 @@ def test_learning_cuts_val_loss_5x(tmp_path, shapes):
     assert list((tmp_path / "run").glob("preview_*.png"))
 
 
-@pytest.mark.slow  # a second full training run (test_learning_cuts_val_loss_5x is the fast check)
+@pytest.mark.slow  # a second full training run (test_learning_cuts_val_loss_5x is the other)
 def test_supersampled_loss_trains(tmp_path, shapes):
     """``supersample`` (the finest level box-filtered from 2x2 sub-pixels) is a loss that
     descends; validation scores the same render. A factor below 1, or an unknown pyramid,
@@ -237,6 +238,7 @@ def test_ddp_two_cpu_processes(tmp_path, shapes):
     assert (tmp_path / "run" / "model" / "model.safetensors").is_file()
 
 
+@pytest.mark.slow  # two training processes, about 10 s: make test-slow
 def test_sigkill_then_resume_loses_at_most_one_interval(tmp_path, shapes):
     """A real `im2vec train` killed with SIGKILL resumes from its last checkpoint."""
     import signal

@@ -42,7 +42,8 @@ def _with_assets():
     return out
 
 
-@pytest.mark.parametrize("name", _with_assets())
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in ("emoji", "icons") else n
+                                  for n in _with_assets()])  # the 8-path models' 64 pictures: 10-15 s each
 def test_quality_on_test_split_subset(name):
     # 64 test-split images (never trained on) copied into tests/assets/<name>_test (or the
     # card's "assets_dir"); the card's metrics.json records the figure measured on exactly these files.
