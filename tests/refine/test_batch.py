@@ -236,7 +236,8 @@ def test_the_outline_polish_holds_the_points_hidden_under_the_shapes_above():
 
 @pytest.mark.skipif(not (REPO_MODELS / "fonts" / "config.json").exists(), reason="no shipped fonts model")
 def test_refinement_starts_where_the_model_draws_the_picture():
-    """The model's two doors: refinement's start (``Plan.passes``, the default) is the picture door,
+    """The model's two doors: refinement's start (``Plan.passes``; by default, for a model of one
+    shape such as fonts) is the picture door,
     what ``--no-refine --parts model`` draws (``infer.vectorize``: the feedback, path and point passes),
     point for point; from the latent alone (``passes=False``) the same glyph is drawn worse."""
     from im2vec_cli.infer import vectorize as guess
@@ -245,12 +246,12 @@ def test_refinement_starts_where_the_model_draws_the_picture():
     model = from_pretrained("fonts")
     img = load_image(sorted(ASSETS.glob("*.png"))[3])
     starts = {}
-    for passes in (True, False):
+    for passes in (None, False):
         run = Refinement(model, [img], Plan(parts="model", passes=passes))
         mu, place, k = run.encode([0], None, None)
         starts[passes] = run.decode(mu, k, place, None, [0])[0]
     drawn = guess(model, [img])[0]
-    assert len(starts[True].shapes) == len(drawn.shapes)
-    for a, b in zip(starts[True].shapes, drawn.shapes):
+    assert len(starts[None].shapes) == len(drawn.shapes)
+    for a, b in zip(starts[None].shapes, drawn.shapes):
         assert all(np.allclose(p, q, atol=1e-5) for p, q in zip(a.contours, b.contours))
-    assert _cairo_mse(starts[True], img) < _cairo_mse(starts[False], img)
+    assert _cairo_mse(starts[None], img) < _cairo_mse(starts[False], img)

@@ -82,11 +82,12 @@ class Refinement:
 
     def decode(self, z: torch.Tensor, k, place: Placement, max_paths: int | None, index: list[int]) -> list[VectorImage]:
         """The paths of each latent in the input's frame, overlaps resolved against its input (once):
-        through the model's picture door (its passes, given the pictures ``index``) with ``passes``,
-        else through its latent door."""
+        through the model's picture door (its passes, given the pictures ``index``) or its latent
+        door, as ``Plan.passes`` says."""
         with torch.no_grad():
             xs = torch.stack([model_input(self.model, self.images[i])[0] for i in index]).to(self.device)
-            dec = self.model.decode(z, k, xs if self.s.passes else None)
+            door = self.s.passes if self.s.passes is not None else self.model.config.grouping != "layers"
+            dec = self.model.decode(z, k, xs if door else None)
             return [resolve_overlaps(to_vector(dec, a, place, max_paths=max_paths), self.images[i])
                     for a, i in enumerate(index)]
 
