@@ -180,7 +180,7 @@ def plan_workers(options: VectorizeOptions, sides: list[tuple[int, int] | None],
     unknown)."""
     s = options.resolve()
     side = (s.max_side if s.polish else 0) if s.refine and s.parts == "clean" else None
-    batched = not options.refine and options.parts == "model"  # one forward pass: a pool only slows it down
+    batched = not s.refine and s.parts == "model"  # one forward pass: a pool only slows it down
     known = [sz or (512, 512) for sz in sides] or [(512, 512)]  # a size unknown: a 512 px picture's
     needs = [side is None or max(sz) <= side for sz in known]  # which need the model
     if jobs is None:

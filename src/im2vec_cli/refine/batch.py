@@ -13,10 +13,10 @@ import torch
 from ..events import Event, Stage
 from ..model.vae import Im2Vec
 from ..options import PARTS, Plan
-from ..trace import FLAT_SUMMARY, Reading, flat_result, read_pictures
+from ..trace import Reading, read_pictures
 from ..trace.batch import workable
 from ..vector import VectorImage
-from .clean import clean_outlines
+from .clean import clean_outlines, flat_apart, on_canvas
 from .stages import Refinement, model_paths
 
 REFINE_BATCH = 32  # images refined together (one render per step); bounds the memory of a batch
@@ -67,14 +67,10 @@ def refine_batch(model: Im2Vec, images: list[torch.Tensor], plan: Plan = Plan(),
     not read again."""
     sizes = _sizes(images, plan.parts)
     images, readings = _read(images, plan, on_step, readings)
-    out: list = [None] * len(images)
+    out, todo = flat_apart([_array(im) for im in images])  # a flat one: the same answer as amortised vectorisation
     by_size: dict[tuple[int, int], list[int]] = {}
-    for i, im in enumerate(images):
-        flat = flat_result(_array(im))
-        if flat is not None:  # nothing to fit: the same answer as amortised vectorisation
-            out[i] = (flat, dict(FLAT_SUMMARY))
-        else:
-            by_size.setdefault(tuple(im.shape[1:]), []).append(i)
+    for i in todo:
+        by_size.setdefault(tuple(images[i].shape[1:]), []).append(i)
     req = [p.requires_grad for p in model.parameters()]
     for p in model.parameters():
         p.requires_grad_(False)
@@ -89,8 +85,7 @@ def refine_batch(model: Im2Vec, images: list[torch.Tensor], plan: Plan = Plan(),
     finally:
         for p, r in zip(model.parameters(), req):
             p.requires_grad_(r)
-    notes = [{"kind": r.kind, "reading": r.figures or {}} for r in readings] if readings else [{}] * len(out)
-    return [(v.rescaled(size[1], size[0]), {**info, **n}) for (v, info), size, n in zip(out, sizes, notes)]
+    return on_canvas(out, sizes, readings)
 
 
 def _refined(model: Im2Vec, images: list[torch.Tensor], plan: Plan, on_step, readings: list[Reading] | None

@@ -85,21 +85,35 @@ def trace_alone(readings: list[Reading], sizes: list[tuple[int, int]], s: Plan, 
     """The clean outlines (``s``: the run's ``options.Plan``) of pictures read as ``readings`` none
     of which is polished (``trace.needs_renderer`` false for each), each on its ``sizes (H, W)``
     canvas, with its summary (as ``refine_batch`` gives it: the kind it was read as, and how)."""
-    out: list = [None] * len(readings)
-    todo = []
-    for i, r in enumerate(readings):
-        flat = flat_result(r.picture)
-        if flat is not None:
-            out[i] = (flat, dict(FLAT_SUMMARY))
-        else:
-            todo.append(i)
+    out, todo = flat_apart([r.picture for r in readings])
     if todo:
         got = clean_outlines([readings[i].picture for i in todo], None, s, readings=[readings[i] for i in todo],
                              on_stage=on_stage)
         for i, r in zip(todo, got):
             out[i] = r
-    return [(v.rescaled(w, h), {**info, "kind": r.kind, "reading": r.figures or {}})
-            for (v, info), (h, w), r in zip(out, sizes, readings)]
+    return on_canvas(out, sizes, readings)
+
+
+def flat_apart(pictures: list[np.ndarray]) -> tuple[list, list[int]]:
+    """Per picture ``(H, W, 3)`` its result where it is flat (one colour: nothing to fit,
+    ``trace.flat_result`` with ``FLAT_SUMMARY``), else ``None``; and the indices of the others."""
+    out: list = [None] * len(pictures)
+    todo = []
+    for i, pic in enumerate(pictures):
+        flat = flat_result(pic)
+        if flat is not None:
+            out[i] = (flat, dict(FLAT_SUMMARY))
+        else:
+            todo.append(i)
+    return out, todo
+
+
+def on_canvas(results: list[tuple[VectorImage, dict]], sizes: list[tuple[int, int]],
+              readings: list[Reading] | None) -> list[tuple[VectorImage, dict]]:
+    """Each ``(vector image, summary)`` scaled to its picture's ``sizes (H, W)`` canvas, its summary
+    with the kind the picture was read as, and how (``readings``; ``None``: nothing added)."""
+    notes = [{"kind": r.kind, "reading": r.figures or {}} for r in readings] if readings else [{}] * len(results)
+    return [(v.rescaled(w, h), {**info, **n}) for (v, info), (h, w), n in zip(results, sizes, notes)]
 
 
 def _starts(pictures: list[np.ndarray], run: Refinement | None, s: Plan, readings: list[Reading],

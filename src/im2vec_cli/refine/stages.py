@@ -42,13 +42,22 @@ class Refinement:
             target = F.interpolate(target, size=(max(4, round(h * f)), max(4, round(w * f))), mode="area")
         self.fitter = _Fitter(target, model.config.samples, s)
         self.fine = _Fitter(target, max(s.polish_samples, model.config.samples), s)
+        self._inputs: list | None = None  # each image in the model's frame (``model_input``), at first need
+
+    def model_inputs(self, index: list[int]) -> tuple[torch.Tensor, list[Placement]]:
+        """The images ``index`` as the model takes them, ``(A, 3, S, S)`` on its device, and their
+        placements; each image is put in the model's frame once, for the encoder and the passes alike."""
+        if self._inputs is None:
+            self._inputs = [model_input(self.model, im) for im in self.images]
+        xs, places = zip(*(self._inputs[i] for i in index))
+        return torch.stack(xs).to(self.device), list(places)
 
     def encode(self, index: list[int], segments, quality) -> tuple[torch.Tensor, Placement, int | torch.Tensor | None]:
         """The amortised guess of the images ``index``: ``mu (A, D)``, the placement (one for
         the batch: its images share a size), and the segments to decode with."""
-        xs, places = zip(*(model_input(self.model, self.images[i]) for i in index))
+        x, places = self.model_inputs(index)
         with torch.no_grad():
-            mu, _ = self.model.encode(torch.stack(xs).to(self.device))
+            mu, _ = self.model.encode(x)
             return mu, places[0], segment_counts(self.model, self.model.path_state(mu)[0], segments, quality)
 
     def fit_latent(self, mu: torch.Tensor, k, place: Placement, index: list[int]) -> tuple[torch.Tensor, list[int]]:
@@ -85,9 +94,8 @@ class Refinement:
         through the model's picture door (its passes, given the pictures ``index``) or its latent
         door, as ``Plan.passes`` says."""
         with torch.no_grad():
-            xs = torch.stack([model_input(self.model, self.images[i])[0] for i in index]).to(self.device)
             door = self.s.passes if self.s.passes is not None else self.model.config.grouping != "layers"
-            dec = self.model.decode(z, k, xs if door else None)
+            dec = self.model.decode(z, k, self.model_inputs(index)[0] if door else None)
             return [resolve_overlaps(to_vector(dec, a, place, max_paths=max_paths), self.images[i])
                     for a, i in enumerate(index)]
 
