@@ -24,7 +24,7 @@ from .events import WorkerDied
 from .options import VectorizeOptions
 
 _state: dict = {}
-TRACE_IMPORTS = ["scipy.ndimage", "scipy.cluster.vq", "contourpy", "pathops", "skimage.filters", "skimage.morphology"]  # what tracing imports on first use:
+TRACE_IMPORTS = ["cv2", "contourpy", "pathops"]  # what tracing imports on first use:
 # once in the fork server, not once a worker
 
 

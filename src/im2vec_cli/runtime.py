@@ -143,11 +143,37 @@ def torch_ready() -> None:
         torch.manual_seed(_PENDING.pop("seed"))
 
 
+class _Hidden:
+    """What ``progress`` gives when no bar shows: the iterable, and a bar's calls doing nothing."""
+
+    def __init__(self, iterable=None):
+        self.iterable = iterable
+
+    def __iter__(self):
+        return iter(self.iterable)
+
+    def update(self, n=1):
+        pass
+
+    def clear(self):
+        pass
+
+    def close(self):
+        pass
+
+    def set_postfix_str(self, s="", refresh=True):
+        pass
+
+
 def progress(iterable=None, **kwargs):
-    """A tqdm bar on stderr that hides itself when stderr is not a terminal."""
+    """A tqdm bar on stderr that hides itself when stderr is not a terminal (``disable=None``:
+    the same). A hidden bar does not import tqdm (22 ms of a traced picture's call)."""
+    if kwargs.get("disable") is None:
+        kwargs["disable"] = not sys.stderr.isatty()
+    if kwargs["disable"]:
+        return _Hidden(iterable)
     from tqdm.auto import tqdm
 
-    kwargs.setdefault("disable", not sys.stderr.isatty())
     kwargs.setdefault("file", sys.stderr)
     kwargs.setdefault("dynamic_ncols", True)
     return tqdm(iterable, **kwargs)

@@ -130,20 +130,20 @@ def test_fill_vector_draws_what_cairosvg_draws(fallback, monkeypatch):
 
 def test_default_vectorize_of_a_glyph_imports_neither_cairo_nor_scipy(tmp_path):
     """Start-up: the default pipeline of a two-tone picture needs no cairo (0.3-0.5 s to import)
-    and no SciPy (0.3 s); a colour picture still uses SciPy (quantisation)."""
+    and no SciPy (0.3 s); nor does a colour picture (its palette's k-means is trace/ndops.py's)."""
     code = (
         "import json, sys\n"
         "import im2vec_cli as iv\n"
         f"iv.vectorize({str(ROOT / 'examples' / 'glyph_a.png')!r})\n"
         "glyph = sorted(m for m in ('cairosvg', 'cairocffi', 'scipy', 'sklearn') if m in sys.modules)\n"
         f"iv.vectorize({str(ROOT / 'examples' / 'emoji_grin.png')!r})\n"
-        "print(json.dumps([glyph, 'scipy' in sys.modules]))\n"
+        "print(json.dumps([glyph, sorted(m for m in ('scipy', 'skimage', 'sklearn') if m in sys.modules)]))\n"
     )
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
-    glyph, colour_scipy = json.loads(out.stdout.strip().splitlines()[-1])
+    glyph, colour = json.loads(out.stdout.strip().splitlines()[-1])
     assert glyph == []
-    assert colour_scipy
+    assert colour == []
 
 
 def test_start_up_runs_without_the_collector_and_restores_it(tmp_path, model_dir):
@@ -167,3 +167,25 @@ def test_start_up_runs_without_the_collector_and_restores_it(tmp_path, model_dir
     assert gc.isenabled()
     assert run(["vectorize", png(tmp_path / "a.png"), "-o", str(tmp_path / "a.svg"), "--model", model_dir]).exit_code == 0
     assert gc.isenabled()
+
+
+def test_lazy_commands_are_the_modules_commands():
+    """app.LAZY names every command of the modules ``vectorize`` does not import, with its module:
+    a command missing from it would be missing from ``im2vec``; help lists them all."""
+    from click.testing import CliRunner
+
+    from im2vec_cli.cli import app, cli
+
+    names = cli.list_commands(None)  # imports every lazy module
+    where = {n: cli.commands[n].callback.__module__.rsplit(".", 1)[-1] for n in names}
+    lazy = {n: m for n, m in where.items() if m not in ("convert", "generate")}
+    assert lazy == app.LAZY
+    out = CliRunner().invoke(cli, ["--help"]).output
+    assert all(n in out for n in names)
+
+
+def test_vectorize_does_not_import_the_training_commands():
+    code = ("import sys\nimport im2vec_cli.cli\n"
+            "print(sorted(m for m in sys.modules if m.startswith('im2vec_cli.cli.')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert "im2vec_cli.cli.training" not in out and "im2vec_cli.cli.convert" in out

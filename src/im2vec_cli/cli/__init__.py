@@ -10,7 +10,7 @@ Exit codes: 0 success; 1 an error (bad input, bad model, failed write; some file
 batch failed); 2 bad usage; 130 interrupted (Ctrl-C); 143 terminated (SIGTERM).
 """
 
-from . import convert, datasets, evaluation, generate, training  # noqa: F401 - they register the commands
+from . import convert, generate  # noqa: F401 - they register their commands; app.LAZY's register when asked for
 from .app import EXIT_HELP, cli
 from .convert import encode, render, vectorize
 from .generate import interpolate, sample

@@ -86,14 +86,14 @@ def correct(coverage: np.ndarray, alpha: np.ndarray, min_width: int = 1) -> np.n
     """``coverage`` with the picture's ink ``alpha`` put back where they disagree by more than
     an edge: pieces the shape misses or adds, wider than ``2 * min_width`` pixels, and the
     pixels around them. Both ``(H, W)`` in [0, 1] on one grid."""
-    from scipy.ndimage import binary_dilation, binary_opening
+    from .ndops import dilate, opening
 
     ink, drawn = alpha >= 0.5, coverage >= 0.5
     k = np.ones((2 * min_width + 1,) * 2, dtype=bool)
-    wrong = binary_opening(ink & ~drawn, k) | binary_opening(drawn & ~ink, k)
+    wrong = opening(ink & ~drawn, k) | opening(drawn & ~ink, k)
     if not wrong.any():
         return coverage
-    near = binary_dilation(wrong, iterations=2 * min_width)
+    near = dilate(wrong, iterations=2 * min_width)
     return np.where(near, alpha, coverage)
 
 
@@ -115,20 +115,20 @@ def mended(shape: VectorShape, width: int, height: int, scale: float = 1.0) -> n
     filled (a grey closing there), and pieces of ink no wider than ``SEAM`` anywhere are
     dropped. Wider parts (counters, strokes with their thin serifs) stay as they are.
     """
-    from scipy.ndimage import binary_dilation, binary_opening, grey_closing, label
+    from .ndops import dilate, grey_closing, label, opening
 
     cov = shape_coverage(shape, width, height, scale)
     union = np.max([shape_coverage(VectorShape([c], (0.0, 0.0, 0.0), "nonzero"), width, height, scale)
                     for c in shape.contours], axis=0) if shape.fill_rule == "evenodd" else cov  # (H, W)
     seam, crack = (np.ones((max(2, int(np.ceil(w * scale))),) * 2, dtype=bool) for w in (SEAM, CRACK))
     bg, cut = cov < 0.5, (union >= 0.5) & (cov < 0.5)
-    thin = (cut & ~binary_opening(cut, seam)) | (bg & ~binary_opening(bg, crack, border_value=1))
-    out = np.where(binary_dilation(thin), np.maximum(cov, grey_closing(np.maximum(cov, union * cut), footprint=seam)), cov)
+    thin = (cut & ~opening(cut, seam)) | (bg & ~opening(bg, crack, border=1))
+    out = np.where(dilate(thin), np.maximum(cov, grey_closing(np.maximum(cov, union * cut), seam)), cov)
     ink, n = label(out >= 0.5)
     if n:
         wide = np.zeros(n + 1, dtype=bool)
-        wide[np.unique(ink[binary_opening(ink > 0, seam)])] = True
-        out = np.where(binary_dilation(~wide[ink] & (ink > 0)), 0.0, out)
+        wide[np.unique(ink[opening(ink > 0, seam)])] = True
+        out = np.where(dilate(~wide[ink] & (ink > 0)), 0.0, out)
     return out
 
 

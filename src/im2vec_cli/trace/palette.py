@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .ndops import norm3
+
 MAX_HARD_COLORS = 64  # a picture of at most this many exact colours (and at least 3)...
 MAX_HARD_SIDE = 512  # ...no larger than this is hard-edged: traced along its pixel edges
 MAX_SPECK = 24  # px: a piece smaller than 1/2000 of the picture, and than this, is a speck (absorbed)
@@ -70,7 +72,7 @@ def quantize(image: np.ndarray, colors: int | None, seed: int = 0, max_colors: i
     a mix of two palette colours that ``_thin_colors`` cannot tell from an edge). Edge pixels
     take the nearest palette colour among those of the flat pixels within two pixels.
     """
-    from scipy.cluster.vq import kmeans2
+    from .ndops import kmeans, nearest
 
     h, w, _ = image.shape
     flat = _flat_pixels(image)
@@ -81,10 +83,10 @@ def quantize(image: np.ndarray, colors: int | None, seed: int = 0, max_colors: i
     unique = np.unique(np.round(pool * 255), axis=0)
     ks = [min(colors, len(unique))] if colors else range(1, min(max_colors, len(unique)) + 1)
     for k in ks:
-        centres, lab = kmeans2(pool, k, minit="++", seed=rng, iter=20)
+        centres, lab = kmeans(pool, k, rng, 20)
         used = np.unique(lab)
         centres = centres[used]
-        err = ((pool - centres[np.argmin(((pool[:, None] - centres[None]) ** 2).sum(-1), 1)]) ** 2).sum(-1)
+        err = ((pool - centres[nearest(pool, centres)]) ** 2).sum(-1)
         far = err > FAR_COLOR**2
         if err.mean() <= flat_mse and far.mean() <= FAR_SHARE and not _far_area(pool[far], len(pool)):
             break
@@ -105,20 +107,15 @@ def posterize(image: np.ndarray, colors: int, seed: int = 0) -> tuple[np.ndarray
     """Palette ``(K, 3)`` and labels ``(H, W)`` of a photo: k-means in CIELAB (distances as the
     eye sees them, so a small patch of a distinct hue keeps a colour of its own) on a sample of
     all its pixels, each pixel given the nearest colour, specks absorbed."""
-    from scipy.cluster.vq import kmeans2
-    from skimage.color import lab2rgb, rgb2lab
+    from .ndops import kmeans, lab2rgb, nearest, rgb2lab
 
     h, w, _ = image.shape
     lab = rgb2lab(image).reshape(-1, 3)
     rng = np.random.default_rng(seed)
     pool = lab[rng.choice(len(lab), min(len(lab), 20000), replace=False)]
-    centres, _ = kmeans2(pool, min(colors, len(np.unique(np.round(pool), axis=0))), minit="++", seed=rng, iter=20)
-    labels = np.empty(len(lab), dtype=np.int64)
-    for lo in range(0, len(lab), 1 << 16):  # nearest centre, in blocks (bounded memory)
-        d = ((lab[lo : lo + (1 << 16), None] - centres[None]) ** 2).sum(-1)
-        labels[lo : lo + (1 << 16)] = np.argmin(d, 1)
-    used, labels = np.unique(labels, return_inverse=True)
-    palette = np.clip(lab2rgb(centres[used][None])[0], 0, 1)
+    centres, _ = kmeans(pool, min(colors, len(np.unique(np.round(pool), axis=0))), rng, 20)
+    used, labels = np.unique(nearest(lab, centres), return_inverse=True)
+    palette = lab2rgb(centres[used])
     return palette, _absorb_specks(labels.reshape(h, w), max(2, int(PHOTO_SPECK * h * w)))
 
 
@@ -147,18 +144,18 @@ def _assign(image: np.ndarray, palette: np.ndarray, flat: np.ndarray) -> np.ndar
     (within two pixels: a flat pixel of that colour, or a pixel close to it), and given
     the one it holds more of. An anti-aliased edge between yellow and black is then yellow
     or black, never a red that happens to lie nearer the mix."""
-    from scipy.ndimage import maximum_filter
+    from .ndops import distinct, max_filter
 
     h, w, _ = image.shape
     k = len(palette)
-    dist = np.stack([np.linalg.norm(image - c, axis=-1).astype(np.float32) for c in palette], -1)  # (H, W, K)
+    dist = np.stack([norm3(image - c).astype(np.float32) for c in palette], -1)  # (H, W, K)
     flat_lab = np.where(flat, np.argmin(dist, -1), -1)
     support = (flat_lab[..., None] == np.arange(k)) | (dist < 0.15)  # flat pixels of it, or pixels close to it
-    near = np.stack([maximum_filter(support[..., i], size=5) for i in range(k)], -1)  # (H, W, K)
+    near = np.stack([max_filter(support[..., i], 5) for i in range(k)], -1)  # (H, W, K)
     near[~near.any(-1)] = True
     labels = np.argmin(dist, -1)
     todo = ~flat if h * w > MIXES_ON_EDGES else np.ones((h, w), dtype=bool)  # a large picture's flat pixels: their
-    colours, back = _distinct(image[todo])  # nearest colour (the mixes of every pair cost 10 s at 2048 px)
+    colours, back = distinct(image[todo])  # nearest colour (the mixes of every pair cost 10 s at 2048 px)
     near = near[todo]
     best = np.full(len(back), np.inf)
     got = np.zeros(len(back), dtype=np.int64)
@@ -179,20 +176,7 @@ def _mixes(pixels: np.ndarray, palette: np.ndarray):
         for j in range(i, len(palette)):
             a, d = palette[i], palette[j] - palette[i]
             t = np.clip((pixels - a) @ d / max(float(d @ d), 1e-12), 0, 1)
-            yield i, j, t, np.linalg.norm(pixels - a - t[..., None] * d, axis=-1)
-
-
-def _distinct(pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The distinct colours ``(M, 3)`` of ``pixels (N, 3)`` and each pixel's ``(N,)`` index among
-    them: what depends on a pixel's colour alone is worked out once a colour (a logo's 65,536
-    sampled pixels hold a few thousand)."""
-    order = np.lexsort(pixels.T[::-1])  # rows in lexicographic order (np.unique(axis=0)'s, 6x faster)
-    ranked = pixels[order]
-    new = np.ones(len(ranked), dtype=bool)
-    new[1:] = (ranked[1:] != ranked[:-1]).any(1)
-    back = np.empty(len(ranked), dtype=np.int64)
-    back[order] = np.cumsum(new) - 1
-    return ranked[new], back
+            yield i, j, t, norm3(pixels - a - t[..., None] * d)
 
 
 def _mix_distance(colours: np.ndarray, palette: np.ndarray) -> np.ndarray:
@@ -204,7 +188,9 @@ def _thin_colors(pixels: np.ndarray, palette: np.ndarray, max_colors: int, tol: 
     """Add the colours of thin features (lines, dots: no flat pixel of their own) to ``palette``:
     while more than 0.2% of the pixels are no mix of two palette colours, the farthest tenth
     of them gives one more colour."""
-    colours, back = _distinct(pixels)
+    from .ndops import distinct
+
+    colours, back = distinct(pixels)
     for _ in range(max_colors - len(palette)):
         off = _mix_distance(colours, palette)[back]
         odd = off > tol
@@ -226,10 +212,11 @@ def _flat_pixels(image: np.ndarray) -> np.ndarray:
 
 
 def _extreme3(a: np.ndarray, op) -> np.ndarray:
-    """The 3x3 maximum (``op=np.maximum``) or minimum of ``a (H, W, C)`` per channel, edges repeated."""
-    p = np.pad(a, ((1, 1), (1, 1), (0, 0)), mode="edge")
-    rows = op(op(p[:-2], p[1:-1]), p[2:])
-    return op(op(rows[:, :-2], rows[:, 1:-1]), rows[:, 2:])
+    """The 3x3 maximum (``op=np.maximum``) or minimum of ``a (H, W, C)`` per channel, edges repeated
+    (``ndops.extreme3``)."""
+    from .ndops import extreme3
+
+    return extreme3(a, op is np.maximum)
 
 
 MIXES_ON_EDGES = 128 * 128  # pictures of more pixels (not polished: options.Plan.max_side) explain only
@@ -241,7 +228,7 @@ def _absorb_specks(labels: np.ndarray, min_px: int) -> np.ndarray:
     """Connected pieces (4-connected) smaller than ``min_px`` pixels take the commonest label
     of the pixels around them (their 4-neighbours of another colour). The specks of one colour
     never touch each other, so all of them are absorbed at once, colour by colour."""
-    from scipy.ndimage import label
+    from .ndops import label
 
     labels = labels.copy()
     h, w = labels.shape

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..options import PRESETS
+from .ndops import norm3
 from .palette import MAX_HARD_COLORS, PHOTO_COLORS, hard_palette
 from .regions import background_color, two_tone
 
@@ -124,12 +125,12 @@ def _native_pixel_art(picture: np.ndarray, labels: np.ndarray) -> bool:
     staircase of thousands of segments."""
     if max(picture.shape[:2]) <= PIXEL_SIDE or edge_share(picture) >= PIXEL_EDGES:
         return True
-    from scipy.ndimage import binary_erosion
+    from .ndops import erode
 
     for k in range(int(labels.max()) + 1):
         mask = labels == k
         n = int(mask.sum())
-        if n >= THIN_MIN and binary_erosion(mask).sum() < THICK_SHARE * n:
+        if n >= THIN_MIN and erode(mask).sum() < THICK_SHARE * n:
             return True  # most of this colour is within a pixel of another: lines, not shapes
     return False
 
@@ -185,13 +186,13 @@ def noise_sigma(picture: np.ndarray) -> float:
     """The picture's noise (standard deviation, in [0, 1] units), Immerkaer's estimate made
     robust: the median absolute response to the 3x3 mask that cancels smooth shading (edges,
     a few pixels, do not move the median), on a copy of at most 512 px a side."""
-    from scipy.ndimage import convolve
+    from .ndops import convolve
 
     h, w, _ = picture.shape
     y0, x0 = (h - min(h, 512)) // 2, (w - min(w, 512)) // 2
     gray = picture[y0 : y0 + 512, x0 : x0 + 512].mean(-1)
     mask = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], dtype=np.float64)
-    r = convolve(gray, mask, mode="reflect")[1:-1, 1:-1]
+    r = convolve(gray, mask)[1:-1, 1:-1]
     return float(1.4826 * np.median(np.abs(r)) / 6 * np.sqrt(3))  # grey is the mean of 3 channels
 
 
@@ -211,7 +212,7 @@ def flattened(picture: np.ndarray) -> tuple[np.ndarray, float]:
     """``(picture with the paper's light divided out, the light's range)``: the paper (the
     brighter side of Otsu's threshold, refined twice against the flattened picture) fitted per
     channel by a smooth polynomial surface; the paper of the result is white."""
-    from skimage.filters import threshold_otsu
+    from .ndops import otsu as threshold_otsu
 
     h, w, _ = picture.shape
     step = max(1, max(h, w) // SURFACE_SIDE)
@@ -261,11 +262,9 @@ def smoothed(picture: np.ndarray, noise: float) -> np.ndarray:
     """``picture`` (``(H, W)`` or ``(H, W, 3)``) with noise of ``noise`` sigma and JPEG ringing
     smoothed away, edges kept: a 3x3 median (specks, ringing), then a Gaussian as wide as the
     noise asks."""
-    from scipy.ndimage import gaussian_filter, median_filter
+    from .ndops import gaussian, median3
 
-    size, sigma = (3, 3, 1)[: picture.ndim], min(1.5, 0.5 + 25 * noise)
-    out = median_filter(picture.astype(np.float32), size=size)
-    return gaussian_filter(out, (sigma, sigma, 0)[: picture.ndim]).astype(np.float64)
+    return gaussian(median3(picture), min(1.5, 0.5 + 25 * noise))
 
 
 def ink_coverage(picture: np.ndarray, lum: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -273,7 +272,7 @@ def ink_coverage(picture: np.ndarray, lum: np.ndarray) -> tuple[np.ndarray, np.n
     (smoothed) brightness ``lum (H, W)``: the coverage is each pixel's place between the paper's
     and the ink's typical brightness (the medians of either side of Otsu's threshold), clipped
     to [0, 1]; the ink's colour is the mean of the fully covered pixels of ``picture``."""
-    from skimage.filters import threshold_otsu
+    from .ndops import otsu as threshold_otsu
 
     sample = lum[:: max(1, lum.shape[0] // 256), :: max(1, lum.shape[1] // 256)]
     t = threshold_otsu(sample)
@@ -294,7 +293,7 @@ def _is_two_tone(flat: np.ndarray, ink: np.ndarray) -> bool:
         return False
     sample = flat[::2, ::2]
     _, alpha = ink_coverage(sample, sample.mean(-1))
-    off = np.linalg.norm(sample - (1 - alpha[..., None] * (1 - ink)), axis=-1)
+    off = norm3(sample - (1 - alpha[..., None] * (1 - ink)))
     return bool((off > OFF_LINE).mean() < OFF_SHARE)
 
 
@@ -309,21 +308,21 @@ def half_max(alpha: np.ndarray, floor: float = 0.3) -> np.ndarray:
     """Line art's coverage ``alpha (H, W)`` over its local peak (3x3, at least ``floor``): the 0.5
     level is then at half the stroke's own darkness, so a stroke thinner than a pixel, whose
     anti-aliased pixels never reach 0.5, is traced as a line about a pixel wide, not as dashes."""
-    from .palette import _extreme3
+    from .ndops import extreme3
 
-    peak = _extreme3(alpha[..., None], np.maximum)[..., 0]
+    peak = extreme3(alpha[..., None], True)[..., 0]
     return np.clip(alpha / np.maximum(peak, floor), 0, 1)
 
 
 def despeckled(alpha: np.ndarray, speck: int) -> np.ndarray:
     """``alpha (H, W)`` with ink pieces and paper holes of fewer than ``speck``^2 px removed."""
-    from skimage.morphology import remove_small_holes, remove_small_objects
+    from .ndops import remove_small
 
     if speck <= 1:
         return alpha
     ink = alpha >= 0.5
-    keep = remove_small_objects(ink, max_size=speck * speck - 1)
-    keep = remove_small_holes(keep, max_size=speck * speck - 1)
+    keep = remove_small(ink, speck * speck - 1)  # pieces of ink, then holes, of fewer than speck^2 px
+    keep = ~remove_small(~keep, speck * speck - 1)
     out = alpha.copy()
     out[ink & ~keep] = 0.0
     out[~ink & keep] = 1.0

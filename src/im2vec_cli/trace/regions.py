@@ -31,6 +31,7 @@ import numpy as np
 
 from ..errors import TraceError
 from ..raster.curves import ring_area
+from .ndops import norm3
 from .palette import FLAT_BY_LEVELS, PHOTO_COLORS, _flat_pixels, hard_palette, posterize, quantize
 
 MAX_REGIONS = 10_000  # regions (or rings of a two-tone picture) traced at most: a few ms each...
@@ -91,7 +92,7 @@ def _ink_line(image: np.ndarray, bg: np.ndarray, extreme: float, d: np.ndarray |
     """The ink (mean of the pixels at least ``extreme`` of the farthest from ``bg``; ``d (H, W)``:
     each pixel's distance from ``bg``, where known) and each pixel's position ``t (H, W)`` along
     the background-ink line (0: background, 1: ink; unclipped)."""
-    d = np.linalg.norm(image - bg, axis=-1) if d is None else d  # (H, W)
+    d = norm3(image - bg) if d is None else d  # (H, W)
     ink = image[d >= extreme * max(d.max(), 1e-6)].mean(0)
     axis = ink - bg
     return ink, ((image - bg) @ axis) / max(float(axis @ axis), 1e-12)
@@ -99,7 +100,7 @@ def _ink_line(image: np.ndarray, bg: np.ndarray, extreme: float, d: np.ndarray |
 
 def _off_line(image: np.ndarray, bg: np.ndarray, ink: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Each pixel's distance from its point on the background-ink line."""
-    return np.linalg.norm(image - (bg + t[..., None] * (ink - bg)), axis=-1)
+    return norm3(image - (bg + t[..., None] * (ink - bg)))
 
 
 def two_tone(image: np.ndarray, bg: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
@@ -107,7 +108,7 @@ def two_tone(image: np.ndarray, bg: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     (A picture of more than ``FLAT_BY_LEVELS`` pixels is tested in float32: half the memory.)"""
     if image.shape[0] * image.shape[1] > FLAT_BY_LEVELS:
         image, bg = image.astype(np.float32), bg.astype(np.float32)
-    d = np.linalg.norm(image - bg, axis=-1)
+    d = norm3(image - bg)
     if d.max() < 0.1:
         return None
     ink, t = _ink_line(image, bg, 0.9, d)
@@ -172,15 +173,13 @@ def _layers(palette: np.ndarray, labels: np.ndarray, white_around: bool, exact: 
     (touching its border) is the canvas. ``exact=False`` (a drawing of curves whose edges were
     not anti-aliased): each shape is the 0.5 level of its mask blurred by ``ALIAS_SIGMA``, the
     curve its staircase stands for, to be fitted and polished."""
-    from scipy.ndimage import binary_dilation, gaussian_filter
+    from .ndops import dilate, gaussian, label
 
     _check_pieces(sum(label_count(labels == k) for k in range(len(palette))), f"pieces of {len(palette)} colours",
                   None)
     white = _white(palette)
     around = np.zeros(labels.shape, dtype=bool)
     if white >= 0 and white_around:
-        from scipy.ndimage import label
-
         lab, _ = label(labels == white)
         edge = np.unique(np.concatenate([lab[0], lab[-1], lab[:, 0], lab[:, -1]]))
         around = np.isin(lab, edge[edge > 0])
@@ -191,8 +190,8 @@ def _layers(palette: np.ndarray, labels: np.ndarray, white_around: bool, exact: 
         if exact:
             rings = pixel_polygons(covered)
         else:  # the colours above pulled in from the outline they share with it: no sliver of this one shows there
-            tucked = covered & ~(covered & (labels != k) & binary_dilation(~covered, iterations=TUCK))
-            rings = level_polygons(gaussian_filter(tucked * 1.0, ALIAS_SIGMA))
+            tucked = covered & ~(covered & (labels != k) & dilate(~covered, iterations=TUCK))
+            rings = level_polygons(gaussian(tucked * 1.0, ALIAS_SIGMA))
         regions.append(Region(tuple(palette[k].tolist()), rings, exact=exact))
         covered = covered & (labels != k)
         if not covered.any():
@@ -202,9 +201,9 @@ def _layers(palette: np.ndarray, labels: np.ndarray, white_around: bool, exact: 
 
 def label_count(mask: np.ndarray) -> int:
     """The connected pieces (8-connected) of ``mask``."""
-    from scipy.ndimage import label
+    from .ndops import label
 
-    return int(label(mask, structure=np.ones((3, 3)))[1])
+    return label(mask, eight=True)[1]
 
 
 def _with_background(bg: np.ndarray, regions: list[Region], shape, exact: bool = False) -> list[Region]:
@@ -271,20 +270,18 @@ def _pieces(palette: np.ndarray, labels: np.ndarray, max_regions: int | None
             ) -> list[tuple[int, int, tuple, np.ndarray, np.ndarray]]:
     """Connected pieces of each colour but the white around the picture: ``(enclosed area,
     colour, box, mask, filled)``, the masks within the piece's box (``BOX_MARGIN`` px wider)."""
-    from scipy.ndimage import binary_fill_holes, find_objects, label
+    from .ndops import fill_holes, pieces
 
     out = []
-    labelled = [label(labels == k, structure=np.ones((3, 3))) for k in range(len(palette))]
-    _check_pieces(sum(n for _, n in labelled), f"pieces of {len(palette)} colours", max_regions)
-    for k, (lab, _) in enumerate(labelled):
-        for p, box in enumerate(find_objects(lab), 1):
-            if box is None:
-                continue
+    labelled = [pieces(labels == k, eight=True) for k in range(len(palette))]
+    _check_pieces(sum(len(boxes) for _, boxes in labelled), f"pieces of {len(palette)} colours", max_regions)
+    for k, (lab, boxes) in enumerate(labelled):
+        for p, box in enumerate(boxes, 1):
             box = _grown_box(box, BOX_MARGIN, labels.shape)
             mask = lab[box] == p
             if k == _white(palette) and _touches_border(mask, box, labels.shape):
                 continue  # the background: the canvas shows it
-            filled = binary_fill_holes(mask)
+            filled = fill_holes(mask)
             out.append((int(filled.sum()), k, box, mask, filled))
     return out
 
@@ -295,7 +292,7 @@ def _stacked_regions(image: np.ndarray, palette: np.ndarray, labels: np.ndarray,
     extended under the pieces above it; neighbouring pieces of one colour share a region.
     Each piece is worked out within its box. ``exact``: outlines along the pixel edges
     (``pixel_polygons``), else the sub-pixel 0.5 level of each piece's edge field."""
-    from scipy.ndimage import binary_dilation
+    from .ndops import dilate
 
     pieces = sorted(_pieces(palette, labels, max_regions), key=lambda t: -t[0])
     if max_regions is not None:
@@ -304,7 +301,7 @@ def _stacked_regions(image: np.ndarray, palette: np.ndarray, labels: np.ndarray,
     extended = []
     for _, k, box, mask, filled in reversed(pieces):  # front to back: `above` is what covers this piece
         over = above[box]
-        reach = binary_dilation(mask) & over if exact else _hidden_reach(mask, over)  # exact: never polished
+        reach = dilate(mask) & over if exact else _hidden_reach(mask, over)  # exact: never polished
         grown = mask | (filled & over) | reach
         rings = pixel_polygons(grown) if exact else level_polygons(_edge_field(image[box], palette[k], grown, over))
         extended.append((k, box, grown, [r + (box[1].start, box[0].start) for r in rings]))
@@ -331,13 +328,13 @@ def _hidden_reach(mask: np.ndarray, over: np.ndarray) -> np.ndarray:
     ``HIDDEN_REACH`` px of it and nearer it than anything else beneath (another piece, the
     background), half a pixel more; the parts on either side of a stroke then meet under its
     middle, so that a stroke polished a little thinner or shifted opens no crack."""
-    from scipy.ndimage import distance_transform_edt
+    from .ndops import distance
 
     if not over.any():
         return over
-    mine = distance_transform_edt(~mask)
+    mine = distance(~mask)
     other = ~mask & ~over
-    theirs = distance_transform_edt(~other) if other.any() else np.full(mask.shape, np.inf)
+    theirs = distance(~other) if other.any() else np.full(mask.shape, np.inf)
     return over & (mine <= HIDDEN_REACH) & (mine < theirs + 0.5)
 
 
@@ -346,15 +343,15 @@ def _edge_field(image: np.ndarray, color: np.ndarray, grown: np.ndarray, above: 
     (background, lower regions) the pixel's mix of the region's colour and the colour beside
     it (sub-pixel, like a two-tone picture's ``alpha``); elsewhere (edges hidden under upper
     regions) the mask, blurred to the mid-line of its staircase."""
-    from scipy.ndimage import binary_dilation, gaussian_filter, uniform_filter
+    from .ndops import box_mean, dilate, gaussian
 
-    field = gaussian_filter(grown.astype(np.float64), 0.6)
+    field = gaussian(grown, 0.6)
     below = ~grown & ~above
-    band = binary_dilation(grown) & binary_dilation(~grown) & binary_dilation(below)
+    band = dilate(grown) & dilate(~grown) & dilate(below)
     if not band.any():
         return field
-    count = uniform_filter(below.astype(np.float64), 5)
-    other = np.stack([uniform_filter(image[..., c] * below, 5) for c in range(3)], -1) / np.maximum(count, 1e-9)[..., None]
+    count = box_mean(below, 5)
+    other = box_mean(image * below[..., None], 5) / np.maximum(count, 1e-9)[..., None]
     axis = color - other  # (H, W, 3)
     norm = (axis * axis).sum(-1)
     mix = np.clip(((image - other) * axis).sum(-1) / np.maximum(norm, 1e-9), 0, 1)
