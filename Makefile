@@ -117,7 +117,7 @@ docs: install
 # icons from Debian's adwaita-icon-theme, scikit-image's sample pictures), im2vec and vtracer side by side in one
 # run, each folder's SVGs compared byte for byte with SPEED_BEFORE's: the speed section of docs/BENCHMARKS.md.
 # About 4 minutes on 2 cores.
-SPEED_BEFORE ?= e32e16a
+SPEED_BEFORE ?= bac053a
 bench-speed: bench-sets
 	test -d /usr/share/icons/Adwaita/512x512 || (apt-get update -q && apt-get install -y -q adwaita-icon-theme)
 	test -d bench/.before-speed || git worktree add --detach bench/.before-speed $(SPEED_BEFORE)

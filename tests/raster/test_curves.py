@@ -48,3 +48,13 @@ def test_ring_area_of_a_square_and_a_circle():
     quarter = [[1, 0], [1, k], [k, 1], [0, 1], [-k, 1], [-1, k], [-1, 0], [-1, -k], [-k, -1], [0, -1], [k, -1], [1, -k]]
     area = ring_area(flatten_ring(np.array(quarter, dtype=float), 64))
     assert abs(area - np.pi) < 2e-3
+
+
+def test_cubics_at_is_cubic_at_row_by_row_to_the_bit():
+    from im2vec_cli.raster.curves import cubic_at, cubics_at
+
+    rng = np.random.default_rng(2)
+    ctrl, t = rng.normal(size=(9, 4, 2)), rng.random((9, 13))
+    got = cubics_at(ctrl, t)
+    assert got.shape == (9, 13, 2)
+    assert all(np.array_equal(got[k], cubic_at(ctrl[k], t[k])) for k in range(9))

@@ -65,3 +65,23 @@ def test_simplify_stays_within_tolerance_of_the_original():
         dist = np.sqrt(((a[:, None] - b[None]) ** 2).sum(-1)).min(1)
         assert dist.max() < tol * 1.5, dist.max()  # samples between the measured ones may stray a little
     assert simplify(_as_image([c]), 0.0).num_segments == n  # tolerance 0: unchanged
+
+
+def test_fit_merges_is_fit_merge_row_by_row_to_the_bit():
+    """The batched first merges of ``simplify_contour`` give each pair ``fit_merge``'s cubic and error exactly."""
+    from im2vec_cli.raster.curves import cubic_at
+    from im2vec_cli.trace.simplify import SAMPLES, fit_merge, fit_merges
+
+    rng = np.random.default_rng(0)
+    t = np.linspace(0, 1, SAMPLES, endpoint=False)
+    pairs = []
+    for i in range(200):
+        a, b = rng.normal(size=(4, 2)) * 10, rng.normal(size=(4, 2)) * 10
+        b[0] = a[3]
+        if i % 10 == 0:
+            a[:] = a[0]  # a collapsed segment: no tangent
+        n = SAMPLES if i % 3 else SAMPLES * 2  # two lengths: two batches
+        pairs.append((a, b, np.concatenate([cubic_at(a, t), cubic_at(b, np.linspace(0, 1, n, endpoint=False)), b[3:4]])))
+    for (ctrl, err), pair in zip(fit_merges(pairs), pairs):
+        want_ctrl, want_err = fit_merge(*pair)
+        assert np.array_equal(ctrl, want_ctrl) and (err == want_err or np.isinf(err) and np.isinf(want_err))

@@ -101,3 +101,39 @@ def test_a_shape_without_contours_crosses_nothing():
     assert not crosses([]) and not crosses([np.zeros((0, 2))])
     vec = VectorImage(8, 8, [VectorShape([], (0, 0, 0), "nonzero")])
     assert untangle(vec).shapes[0].contours == []
+
+
+def _crosses_brute(contours, samples=16):
+    """Every pair of polyline edges tested: the reference ``crosses`` must agree with."""
+    from im2vec_cli.raster.curves import flatten_ring
+
+    edges = []
+    for k, c in enumerate(contours):
+        p = flatten_ring(c, samples)
+        edges += [(k, j, len(p), p[j], p[(j + 1) % len(p)]) for j in range(len(p))]
+    for k1, j1, n1, a1, b1 in edges:
+        for k2, j2, _, a2, b2 in edges:
+            gap = abs(j1 - j2)
+            if k1 == k2 and (gap <= 1 or gap >= n1 - 1):
+                continue
+            d1, d2, r = b1 - a1, b2 - a2, a2 - a1
+            den = d1[0] * d2[1] - d1[1] * d2[0]
+            if abs(den) <= 1e-12:
+                continue
+            t = (r[0] * d2[1] - r[1] * d2[0]) / den
+            u = (r[0] * d1[1] - r[1] * d1[0]) / den
+            if 1e-9 < t < 1 - 1e-9 and 1e-9 < u < 1 - 1e-9:
+                return True
+    return False
+
+
+def test_crosses_agrees_with_every_pair_tested():
+    rng = np.random.default_rng(7)
+    seen = set()
+    for _ in range(40):
+        contours = [np.cumsum(rng.normal(size=(3 * int(rng.integers(1, 4)), 2)), 0) * 3 + rng.uniform(0, 40, 2)
+                    for _ in range(int(rng.integers(1, 4)))]
+        want = _crosses_brute(contours)
+        assert crosses(contours) == want
+        seen.add(want)
+    assert seen == {True, False}

@@ -39,6 +39,14 @@ def cubic_at(ctrl, t):
     return u**3 * c[..., 0, :] + 3 * u * u * t * c[..., 1, :] + 3 * u * t * t * c[..., 2, :] + t**3 * c[..., 3, :]
 
 
+def cubics_at(ctrl: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """``cubic_at`` of each of K cubics ``ctrl (K, 4, 2)`` at its own parameters ``t (K, N)``:
+    ``(K, N, 2)``, each row bit for bit ``cubic_at(ctrl[k], t[k])``."""
+    t, c = t[..., None], ctrl[:, None]  # (K, N, 1), (K, 1, 4, 2)
+    u = 1 - t
+    return u**3 * c[..., 0, :] + 3 * u * u * t * c[..., 1, :] + 3 * u * t * t * c[..., 2, :] + t**3 * c[..., 3, :]
+
+
 def segments_of(points: np.ndarray) -> np.ndarray:
     """``points (..., 3S, 2)`` -> ``(..., S, 4, 2)``: ``[p0, p1, p2, p3]`` of each segment."""
     points = np.asarray(points)

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..raster.curves import cubic_at, line_controls
+from ..raster.curves import cubics_at, line_controls
 
 Corners = list[list[np.ndarray]]  # per shape, per contour: (S,) bool, true where anchor i is sharp
 
@@ -201,12 +201,12 @@ def fit_runs(runs: list[tuple[np.ndarray, np.ndarray, np.ndarray]], tol: float) 
                 fit.append((r, key, pts, t0, t1, depth))
         pending = []
         for block in _blocks(fit):
-            for (r, key, p, t0, t1, depth), ctrl, u in zip(block, *_fit_block(block)):
-                err = np.hypot(*(cubic_at(ctrl, u[: len(p)]) - p).T)
-                if err.max() <= tol or depth > MAX_DEPTH:
+            ctrls, worst, where = _fit_block(block)
+            for (r, key, p, t0, t1, depth), ctrl, err, at in zip(block, ctrls, worst.tolist(), where.tolist()):
+                if err <= tol or depth > MAX_DEPTH:
                     done[r].append((key, ctrl))
                     continue
-                i = int(np.clip(np.argmax(err), 2, len(p) - 3))
+                i = int(np.clip(at, 2, len(p) - 3))
                 tc = _unit(p[i + 2] - p[i - 2])  # the split is a smooth join
                 pending += [(r, key + (0,), p[: i + 1], t0, -tc, depth + 1), (r, key + (1,), p[i:], tc, t1, depth + 1)]
     return [[c for _, c in sorted(d, key=lambda kc: kc[0])] for d in done]
@@ -229,9 +229,10 @@ def _blocks(fit: list[tuple]) -> list[list[tuple]]:
     return out + [cur] if cur else out
 
 
-def _fit_block(fit: list[tuple]) -> tuple[np.ndarray, np.ndarray]:
+def _fit_block(fit: list[tuple]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``fit_cubics`` of pieces ``(run, key, pts, t0, t1, depth)`` padded to the longest:
-    control points ``(R, 4, 2)`` and parameters ``(R, L)``."""
+    control points ``(R, 4, 2)``, each piece's largest distance from its points to its cubic
+    at their parameters ``(R,)`` and the index of the (first) farthest point ``(R,)``."""
     size = max(len(f[2]) for f in fit)
     pts = np.zeros((len(fit), size, 2))
     mask = np.zeros((len(fit), size), dtype=bool)
@@ -240,7 +241,9 @@ def _fit_block(fit: list[tuple]) -> tuple[np.ndarray, np.ndarray]:
         seg = np.hypot(*np.diff(p, axis=0).T)
         pts[j, : len(p)], mask[j, : len(p)] = p, True
         u[j, 1 : len(p)] = np.cumsum(seg) / max(seg.sum(), 1e-12)  # chord-length parameters
-    return fit_cubics(pts, mask, u, np.stack([f[3] for f in fit]), np.stack([f[4] for f in fit]), 4)
+    ctrl, u = fit_cubics(pts, mask, u, np.stack([f[3] for f in fit]), np.stack([f[4] for f in fit]), 4)
+    err = np.where(mask, np.hypot(*np.moveaxis(cubics_at(ctrl, u) - pts, -1, 0)), -np.inf)  # (R, L)
+    return ctrl, err.max(1), err.argmax(1)
 
 
 def fit_run(pts: np.ndarray, t0: np.ndarray, t1: np.ndarray, tol: float) -> list[np.ndarray]:

@@ -15,9 +15,9 @@ import dataclasses
 
 import numpy as np
 
-from ..raster.curves import cubic_at, segments_of
+from ..raster.curves import cubic_at, cubics_at, segments_of
 from ..vector import VectorImage
-from .fit import fit_cubic
+from .fit import fit_cubic, fit_cubics
 
 SAMPLES = 12  # points per original segment when measuring a merge
 
@@ -59,6 +59,29 @@ def fit_merge(first: np.ndarray, second: np.ndarray, pts: np.ndarray) -> tuple[n
     return ctrl, err
 
 
+def fit_merges(pairs: list[tuple[np.ndarray, np.ndarray, np.ndarray]]) -> list[tuple[np.ndarray, float]]:
+    """``fit_merge`` of each ``(first, second, pts)``, those of one length of ``pts`` in one
+    ``fit_cubics`` batch (every step is row by row, so each result is ``fit_merge``'s to the bit)."""
+    out: list = [None] * len(pairs)
+    todo: dict[int, list] = {}
+    for i, (first, second, pts) in enumerate(pairs):
+        t0, t1 = _tangent(first, True), _tangent(second, False)
+        if t0 is None or t1 is None or np.hypot(*(second[3] - first[0])) < 1e-9:
+            out[i] = fit_merge(first, second, pts)
+        else:
+            todo.setdefault(len(pts), []).append((i, pts, t0, t1))
+    for rows in todo.values():
+        pts = np.stack([r[1] for r in rows])  # (K, N, 2)
+        seg = np.hypot(*np.moveaxis(np.diff(pts, axis=1), -1, 0))  # (K, N - 1)
+        u = np.concatenate([np.zeros((len(rows), 1)), np.cumsum(seg, 1)], 1) / np.maximum(seg.sum(1), 1e-12)[:, None]
+        ctrl, u = fit_cubics(pts, np.ones(u.shape, dtype=bool), u, np.stack([r[2] for r in rows]),
+                             np.stack([r[3] for r in rows]), 3)
+        err = np.hypot(*np.moveaxis(cubics_at(ctrl, u) - pts, -1, 0)).max(1)  # (K,)
+        for (i, *_), cc, e in zip(rows, ctrl, err.tolist()):
+            out[i] = (cc, e)
+    return out
+
+
 def simplify_contour(points: np.ndarray, tol: float, min_segments: int = 2) -> np.ndarray:
     """Merge segments of a closed contour ``(3S, 2)`` (px) while each merge stays within ``tol`` px.
 
@@ -70,6 +93,11 @@ def simplify_contour(points: np.ndarray, tol: float, min_segments: int = 2) -> n
     segs = [(i, c, _bezier(c, t)) for i, c in enumerate(_segments(np.asarray(points, dtype=np.float64)))]
     uid = len(segs)
     costs: dict[tuple[int, int], tuple[np.ndarray, float]] = {}  # merge of two neighbours by uid
+    if len(segs) > min_segments:  # every first merge at once
+        nxt = segs[1:] + segs[:1]
+        keys = [(ua, ub) for (ua, _, _), (ub, _, _) in zip(segs, nxt)]
+        costs.update(zip(keys, fit_merges([(a, b, np.concatenate([sa, sb, b[3:4]]))
+                                           for (_, a, sa), (_, b, sb) in zip(segs, nxt)])))
     while len(segs) > min_segments:
         n = len(segs)
         best_i, best = -1, (None, np.inf)

@@ -71,9 +71,13 @@ def crosses(contours: list[np.ndarray], samples: int = 16) -> bool:
         return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
 
     lo_xy, hi_xy = np.minimum(a, b), np.maximum(a, b)  # (E, 2) edge boxes
+    by_x = np.argsort(lo_xy[:, 0], kind="stable")  # edges by their left side: those that can reach a box
+    left, widest = lo_xy[by_x, 0], float((hi_xy[:, 0] - lo_xy[:, 0]).max())
     for lo in range(0, len(a), CROSS_BLOCK):  # blocks of edges i (neighbours along a contour: a small box)
         i = slice(lo, lo + CROSS_BLOCK)
-        near = np.nonzero(((lo_xy <= hi_xy[i].max(0)) & (hi_xy >= lo_xy[i].min(0))).all(1))[0]  # edges j in that box
+        box_lo, box_hi = lo_xy[i].min(0), hi_xy[i].max(0)
+        maybe = by_x[np.searchsorted(left, box_lo[0] - widest, "left") : np.searchsorted(left, box_hi[0], "right")]
+        near = maybe[((lo_xy[maybe] <= box_hi) & (hi_xy[maybe] >= box_lo)).all(1)]  # edges j in that box
         r = a[near][None] - a[i, None]  # (B, J, 2): from edge i's start to edge j's start
         den = cross(d[i, None], d[near][None])
         ok = np.abs(den) > 1e-12
