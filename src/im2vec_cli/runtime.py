@@ -144,25 +144,22 @@ def torch_ready() -> None:
 
 
 class _Hidden:
-    """What ``progress`` gives when no bar shows: the iterable, and a bar's calls doing nothing."""
+    """What ``progress`` gives when no bar shows: the iterable, a bar's count (``n``) and
+    ``disable``, and every other call of a tqdm bar doing nothing."""
+
+    disable = True
 
     def __init__(self, iterable=None):
-        self.iterable = iterable
+        self.iterable, self.n = iterable, 0
 
     def __iter__(self):
         return iter(self.iterable)
 
     def update(self, n=1):
-        pass
+        self.n += n
 
-    def clear(self):
-        pass
-
-    def close(self):
-        pass
-
-    def set_postfix_str(self, s="", refresh=True):
-        pass
+    def __getattr__(self, name):  # clear, close, set_postfix, set_postfix_str, refresh, ...
+        return lambda *args, **kwargs: None
 
 
 def progress(iterable=None, **kwargs):
