@@ -52,6 +52,8 @@ def _outline(sh: VectorShape, snap: float = 1 / 256) -> list[np.ndarray] | None:
 
 CROSS_BLOCK = 64  # edges tested at once by ``crosses``, against the edges in their box: a few cubics' box, which
 # few other edges enter (512: a glyph's box, and 2 s for a 2048 px page of text instead of 0.3 s)
+CROSS_CELL = 32  # px: the grid that finds the edges in a block's box; an edge in more than WIDE_CELLS cells is
+WIDE_CELLS = 64  # tested against every block (a page's frame, a long rule: few)
 
 
 def crosses(contours: list[np.ndarray], samples: int = 16) -> bool:
@@ -71,12 +73,10 @@ def crosses(contours: list[np.ndarray], samples: int = 16) -> bool:
         return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
 
     lo_xy, hi_xy = np.minimum(a, b), np.maximum(a, b)  # (E, 2) edge boxes
-    by_x = np.argsort(lo_xy[:, 0], kind="stable")  # edges by their left side: those that can reach a box
-    left, widest = lo_xy[by_x, 0], float((hi_xy[:, 0] - lo_xy[:, 0]).max())
-    for lo in range(0, len(a), CROSS_BLOCK):  # blocks of edges i (neighbours along a contour: a small box)
-        i = slice(lo, lo + CROSS_BLOCK)
+    grid = _EdgeGrid(lo_xy, hi_xy)
+    for i in _blocks([len(p) for p in polys], lo_xy, hi_xy):  # neighbours along a contour: a small box
         box_lo, box_hi = lo_xy[i].min(0), hi_xy[i].max(0)
-        maybe = by_x[np.searchsorted(left, box_lo[0] - widest, "left") : np.searchsorted(left, box_hi[0], "right")]
+        maybe = grid.within(box_lo, box_hi)
         near = maybe[((lo_xy[maybe] <= box_hi) & (hi_xy[maybe] >= box_lo)).all(1)]  # edges j in that box
         r = a[near][None] - a[i, None]  # (B, J, 2): from edge i's start to edge j's start
         den = cross(d[i, None], d[near][None])
@@ -90,3 +90,54 @@ def crosses(contours: list[np.ndarray], samples: int = 16) -> bool:
         if (hit & ~neighbours).any():
             return True
     return False
+
+
+def _blocks(sizes: list[int], lo_xy: np.ndarray, hi_xy: np.ndarray) -> list[slice]:
+    """Runs of at most ``CROSS_BLOCK`` edges along one contour, consecutive small contours put
+    together while their box stays within a ``CROSS_CELL`` px square (a block across two far
+    apart contours would have a page-sized box)."""
+    out, start = [], 0
+    for n in sizes:
+        for lo in range(start, start + n, CROSS_BLOCK):
+            hi = min(lo + CROSS_BLOCK, start + n)
+            if out and out[-1].stop == lo and hi - out[-1].start <= CROSS_BLOCK:
+                j = slice(out[-1].start, hi)
+                if (hi_xy[j].max(0) - lo_xy[j].min(0)).max() <= CROSS_CELL:
+                    out[-1] = j
+                    continue
+            out.append(slice(lo, hi))
+        start += n
+    return out
+
+
+class _EdgeGrid:
+    """Edge boxes ``(E, 2)`` filed by the ``CROSS_CELL`` px grid cells they enter, to find every
+    edge whose box may meet a given box (a superset: the caller tests the boxes)."""
+
+    def __init__(self, lo_xy: np.ndarray, hi_xy: np.ndarray):
+        self.origin = lo_xy.min(0)
+        c0, c1 = self._cell(lo_xy), self._cell(hi_xy)
+        self.columns = int(c1[:, 0].max()) + 1
+        span = c1 - c0 + 1
+        count = span[:, 0] * span[:, 1]
+        wide = count > WIDE_CELLS
+        self.wide = np.flatnonzero(wide)
+        edge = np.repeat(np.flatnonzero(~wide), count[~wide])  # one row per (edge, cell)
+        first = np.repeat(np.cumsum(count[~wide]) - count[~wide], count[~wide])
+        k = np.arange(len(edge)) - first  # the k-th cell of its edge's box, row by row
+        w = span[edge, 0]
+        cell = (c0[edge, 1] + k // w) * self.columns + c0[edge, 0] + k % w
+        order = np.argsort(cell, kind="stable")
+        self.cell, self.edge = cell[order], edge[order]
+
+    def _cell(self, xy: np.ndarray) -> np.ndarray:
+        return np.floor((xy - self.origin) / CROSS_CELL).astype(np.int64)
+
+    def within(self, box_lo: np.ndarray, box_hi: np.ndarray) -> np.ndarray:
+        (x0, y0), (x1, y1) = self._cell(box_lo[None])[0], self._cell(box_hi[None])[0]
+        x1 = min(x1, self.columns - 1)
+        rows = np.arange(max(y0, 0), y1 + 1) * self.columns
+        starts = np.searchsorted(self.cell, rows + max(x0, 0), "left")
+        ends = np.searchsorted(self.cell, rows + x1, "right")
+        parts = [self.edge[s:e] for s, e in zip(starts, ends)] + [self.wide]
+        return np.unique(np.concatenate(parts))
