@@ -41,6 +41,7 @@ OFF_SHARE = 0.05  # ...and a picture with more than this share of them is no ink
 # photographed scribbles 3%, OpenMoji faces with a dark outline 12-24%: bench/realworld.py, bench/hardening.py)
 THIN = 3.5  # px: strokes at most this wide (median) make line art
 PHOTO_SHARE = 0.6  # a picture whose 16 commonest colours (4 bits a channel) cover less than this share is a photo
+PHOTO_NOISE = 0.02  # a photo is smoothed as if its noise were at least this (``smoothed``)
 PHOTO_LOOSE = 2.0  # a photo's curves are fitted within twice the tolerance: 5134 -> 2959 segments on
 # skimage's coffee, 6.7 -> 4.5 s
 PIXEL_EDGES = 0.08  # native pixel art (no upscaling found) has at least this share of its pixels on a colour
@@ -49,6 +50,11 @@ PIXEL_EDGES = 0.08  # native pixel art (no upscaling found) has at least this sh
 PIXEL_SIDE = 64  # a hard-edged picture this small is pixel art whatever its edges
 THICK_SHARE = 0.8  # ...and so is one with a colour (of THIN_MIN pixels or more) that a 3x3 erosion keeps less of:
 THIN_MIN = 4  # 1 px lines keep 0-0.06, the Shepp-Logan phantom's 2-4 px ring 0.74, flat circles 0.84-0.96
+INK_PERCENTILE = 1  # thin strokes' ink: this percentile of the dark side (``ink_coverage(sharp=True)``)
+STROKE_LEVEL = 0.8  # a scanned thin stroke, blurred (sigma s), keeps its width at about 0.8 of its peak p
+# (a Gaussian profile: p * exp(-0.78 p^2)); at half its peak, scanned text came out 15-50% bold (issue 69)
+FRINGE_CHROMA, FRINGE_STEP, FRINGE_EDGE = 0.1, 0.15, 0.9  # sub-pixel text: colourful pixels (channel spread),
+# nearly all of them within 2 px of a change in brightness along the row (``subpixel_grey``)
 BLACK_INK = 0.35  # ink of a scan darker than this (mean channel, after flattening) and ...
 NEUTRAL_INK = 0.12  # ... less colourful than this (channel spread) is black ink
 
@@ -87,6 +93,10 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
         return Reading("logo", picture, figures={"aliased": True})
     bg = background_color(picture)
     tone = two_tone(picture, bg) if preset in (None, "line", "logo") else None
+    if tone is None and preset in (None, "line", "logo"):  # text drawn with sub-pixel anti-aliasing (a
+        grey = subpixel_grey(picture)  # screenshot's): colour fringes on the sides of the strokes, read as grey
+        tone = two_tone(grey, bg) if grey is not None else None
+        picture = grey if tone is not None else picture
     if preset is None and tone is not None and background_spread(picture, tone[1]) > UNEVEN:
         tone = None  # shaded paper: a scan whose light falls along the ink's colour line, not a clean picture
     if preset is None and tone is not None:
@@ -102,18 +112,41 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
         flat, light = flattened(picture)
         figures["light"] = round(light, 3)
         if preset is not None or noise > NOISE or light > UNEVEN:
-            ink, alpha = ink_coverage(flat, smoothed(flat.mean(-1), noise))
+            lum = smoothed(flat.mean(-1), noise)
+            ink, alpha = ink_coverage(flat, lum)
             if preset is not None or _is_two_tone(flat, ink):
+                thin = ink_coverage(flat, lum, sharp=True)  # read at the darkest ink: thin strokes at their weight
+                kind = preset or ("line" if stroke_width(thin[1] >= 0.5) <= THIN else "scan")
+                if kind == "line":
+                    ink, alpha = thin
                 alpha, ink = despeckled(alpha, speck), _ink_color(ink)
                 clean = 1 - alpha[..., None] * (1 - ink)
-                kind = preset or ("line" if stroke_width(alpha >= 0.5) <= THIN else "scan")
                 if kind == "line":
-                    alpha = half_max(alpha)
+                    alpha = half_max(alpha, level=STROKE_LEVEL)
                 return Reading(kind, clean, figures=figures, tone=(ink, alpha) if alpha.max() >= 0.1 else None)
     if preset == "photo" or (preset is None and color_share(picture, 16) < PHOTO_SHARE):
-        return Reading("photo", smoothed(picture, max(noise, 0.02)), colors=PHOTO_COLORS, polish=False,
+        return Reading("photo", smoothed(picture, max(noise, PHOTO_NOISE)), colors=PHOTO_COLORS, polish=False,
                        figures=figures, loose=PHOTO_LOOSE)
     return Reading("logo", smoothed(picture, noise) if noise > NOISE else picture, figures=figures)
+
+
+def subpixel_grey(picture: np.ndarray) -> np.ndarray | None:
+    """``picture (H, W, 3)`` as grey when its colours are sub-pixel anti-aliasing's (ClearType,
+    FreeType's LCD filter: text in a screenshot): colour only on the sides of dark strokes, at
+    least ``FRINGE_EDGE`` of its colourful pixels where the brightness changes along the row;
+    else ``None`` (a colour picture: colour in its flat areas too)."""
+    if max(picture.shape[:2]) <= PIXEL_SIDE:  # a small icon is all edges: its colours are its own
+        return None
+    chroma = np.ptp(picture, axis=-1)
+    colourful = chroma > FRINGE_CHROMA
+    if not colourful.any():
+        return None
+    lum = picture.mean(-1)
+    p = np.pad(lum, ((0, 0), (2, 2)), mode="edge")
+    across = np.maximum(np.abs(p[:, 3:-1] - p[:, 1:-3]), np.abs(p[:, 4:] - p[:, :-4]))  # within 2 px along the row
+    if (across[colourful] > FRINGE_STEP).mean() < FRINGE_EDGE:
+        return None
+    return np.repeat(lum[..., None], 3, -1)
 
 
 def _native_pixel_art(picture: np.ndarray, labels: np.ndarray) -> bool:
@@ -267,17 +300,25 @@ def smoothed(picture: np.ndarray, noise: float) -> np.ndarray:
     return gaussian(median3(picture), min(1.5, 0.5 + 25 * noise))
 
 
-def ink_coverage(picture: np.ndarray, lum: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def ink_coverage(picture: np.ndarray, lum: np.ndarray, sharp: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """``(ink colour (3,), coverage (H, W))`` of a picture of ink on white paper, from its
     (smoothed) brightness ``lum (H, W)``: the coverage is each pixel's place between the paper's
     and the ink's typical brightness (the medians of either side of Otsu's threshold), clipped
-    to [0, 1]; the ink's colour is the mean of the fully covered pixels of ``picture``."""
+    to [0, 1]; the ink's colour is the mean of the fully covered pixels of ``picture``. ``sharp``:
+    the ink's brightness is the ``INK_PERCENTILE`` of the dark side of ``picture`` (3x3 median)
+    instead, for thin strokes, which blurring keeps from ever reaching the ink's median."""
     from .ndops import otsu as threshold_otsu
 
-    sample = lum[:: max(1, lum.shape[0] // 256), :: max(1, lum.shape[1] // 256)]
+    step = (max(1, lum.shape[0] // 256), max(1, lum.shape[1] // 256))
+    sample = lum[:: step[0], :: step[1]]
     t = threshold_otsu(sample)
     dark, light = sample[sample <= t], sample[sample > t]
-    ink_l = float(np.median(dark)) if len(dark) else 0.0
+    if sharp:  # the ink's level before smoothing thinned the strokes: the darkest of the dark side
+        from .ndops import median3
+
+        dark = median3(picture.mean(-1))[:: step[0], :: step[1]]
+        dark = dark[dark <= t]
+    ink_l = float(np.percentile(dark, INK_PERCENTILE if sharp else 50)) if len(dark) else 0.0
     paper_l = float(np.median(light)) if len(light) else 1.0
     alpha = np.clip((paper_l - lum) / max(paper_l - ink_l, 1e-3), 0, 1)
     full = alpha >= 0.9
@@ -304,14 +345,16 @@ def _ink_color(ink: np.ndarray) -> np.ndarray:
     return ink
 
 
-def half_max(alpha: np.ndarray, floor: float = 0.3) -> np.ndarray:
-    """Line art's coverage ``alpha (H, W)`` over its local peak (3x3, at least ``floor``): the 0.5
-    level is then at half the stroke's own darkness, so a stroke thinner than a pixel, whose
-    anti-aliased pixels never reach 0.5, is traced as a line about a pixel wide, not as dashes."""
+def half_max(alpha: np.ndarray, floor: float = 0.3, level: float = 0.5) -> np.ndarray:
+    """Line art's coverage ``alpha (H, W)`` over ``2 * level`` times its local peak (3x3, at least
+    ``floor``; at most 1): the 0.5 level is then at ``level`` times the stroke's own darkness, so
+    a stroke thinner than a pixel, whose anti-aliased pixels never reach 0.5, is traced as a line
+    about a pixel wide, not as dashes. A blurred stroke (a scan's) keeps its width at about 0.8
+    of its peak (``STROKE_LEVEL``); crisp line art is traced at half of it."""
     from .ndops import extreme3
 
     peak = extreme3(alpha[..., None], True)[..., 0]
-    return np.clip(alpha / np.maximum(peak, floor), 0, 1)
+    return np.clip(alpha / np.minimum(1.0, 2 * level * np.maximum(peak, floor)), 0, 1)
 
 
 def despeckled(alpha: np.ndarray, speck: int) -> np.ndarray:
