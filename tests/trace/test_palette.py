@@ -60,3 +60,32 @@ def test_a_small_grey_area_between_black_lines_keeps_its_own_colour():
     palette, labels = quantize(pic, None)
     assert _nearest(palette, grey) < 0.02 and len(palette) == 4
     assert np.linalg.norm(palette[labels[52:56, 27:36]] - grey, axis=-1).max() < 0.02
+
+
+def test_a_clean_renders_small_pieces_are_kept_and_a_jpegs_specks_absorbed():
+    """Small text in a screenshot (pieces of 6-20 px: letters, dots) is part of the picture, not
+    specks: in a clean render (flat colours exact) pieces of 4 px or more are kept (issue 69: the
+    pieces under 24 px were absorbed and a UI's labels vanished); the same picture saved as a
+    JPEG has its specks absorbed as before."""
+    import io
+
+    from PIL import Image
+
+    pic = np.ones((240, 320, 3))
+    pic[20:80, 20:300] = (0.2, 0.4, 0.8)  # a banner
+    pic[120:200, 40:120] = (0.85, 0.2, 0.2)  # a red panel
+    marks = [(150 + 8 * (k // 10), 150 + 12 * (k % 10)) for k in range(30)]
+    for y, x in marks:  # 30 'letters' of 3 x 4 px
+        pic[y : y + 4, x : x + 3] = 0.1
+    palette, labels = quantize(pic, None)
+    dark = int(np.argmin(palette.sum(1)))
+    assert palette[dark].max() < 0.2
+    assert all((labels[y : y + 4, x : x + 3] == dark).all() for y, x in marks)
+    buf = io.BytesIO()
+    Image.fromarray(np.round(pic * 255).astype(np.uint8)).save(buf, "JPEG", quality=60)
+    jpeg = np.asarray(Image.open(buf), np.float64) / 255
+    _, jl = quantize(jpeg, None)
+    from im2vec_cli.trace.ndops import label
+
+    pieces = [np.bincount(label(jl == k)[0].ravel())[1:] for k in np.unique(jl)]
+    assert min(int(p.min()) for p in pieces if len(p)) >= 24  # a JPEG's speck size: its specks absorbed

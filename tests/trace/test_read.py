@@ -249,3 +249,46 @@ def test_a_hard_edged_diagram_of_thin_lines_stays_exact():
     assert r.kind == "pixel"
     vec, _, exact = traced(r.picture, 0.5, None, None, r.kind, r.tone)
     assert exact and np.abs(rasterize_svg(vec.to_svg(), 320, 240) - pic).max() < 2 / 255
+
+
+def shaded_icon(size: int = 256, seed: int = 0) -> np.ndarray:
+    """``(H, W, 3)``: a desktop icon as Oxygen draws them: a grey body shaded top to bottom, a
+    darker panel and a few black marks, on white (as a transparent icon looks), with a trace of
+    rendering noise."""
+    rng = np.random.default_rng(seed)
+    img = np.ones((size, size, 3))
+    y = np.linspace(0, 1, size)[:, None, None]
+    body = np.s_[size // 10 : 9 * size // 10, size // 10 : 9 * size // 10]
+    img[body] = (0.9 - 0.5 * y[body[0]]) * np.ones(3)
+    img[size // 3 : size // 2, size // 4 : 3 * size // 4] = 0.35
+    for k in range(4):
+        img[2 * size // 3 : 2 * size // 3 + 6, size // 4 + 12 * k : size // 4 + 12 * k + 4] = 0.05
+    return np.clip(img + rng.normal(0, 0.004, img.shape), 0, 1)
+
+
+def test_a_shaded_icon_is_no_scan():
+    """A grey icon shaded from light to dark is no ink on uneven paper: read as a scan (issue 69),
+    Oxygen's printer icon came out as a few black marks (MSE 0.032, vtracer 0.004). In-between
+    shades in steady areas tell it from a scan, whose in-between pixels are its strokes' edges."""
+    from im2vec_cli.trace.read import shaded_share
+
+    icon = shaded_icon()
+    r = read(icon)
+    assert r.kind != "scan", r.figures
+    vec = api.vectorize(icon)
+    got = rasterize_svg(vec.to_svg(), 256, 256)
+    assert ((got - icon) ** 2).mean() < 0.004  # the body's shades are drawn, not dropped as paper
+    assert shaded_share(np.clip((0.9 - icon.mean(-1)) / 0.85, 0, 1)) > 0.02
+
+
+def test_a_small_icons_detail_is_not_smoothed_as_noise():
+    """A 32 px icon's pixel-sized detail measures as noise; smoothing it away blurred Tango's
+    calculator into a grey blob (issue 69): pictures of at most 64 px are read as drawn."""
+    rng = np.random.default_rng(3)
+    yy, xx = np.mgrid[0:32, 0:32]
+    icon = np.ones((32, 32, 3))
+    body = (yy >= 2) & (yy < 30) & (xx >= 2) & (xx < 30)
+    icon[body] = (0.35 + 0.3 * yy / 32 + rng.uniform(0, 0.12, (32, 32)))[body][:, None] * np.array([1, 0.95, 0.9])
+    assert noise_sigma(icon) > 0.012  # what the noise estimate makes of its texture
+    r = read(icon)
+    assert r.kind == "logo" and np.array_equal(r.picture, icon)

@@ -16,7 +16,9 @@ from .ndops import norm3
 
 MAX_HARD_COLORS = 64  # a picture of at most this many exact colours (and at least 3)...
 MAX_HARD_SIDE = 512  # ...no larger than this is hard-edged: traced along its pixel edges
-MAX_SPECK = 24  # px: a piece smaller than 1/2000 of the picture, and than this, is a speck (absorbed)
+MAX_SPECK = 24  # px: a piece smaller than 1/2000 of the picture, and than this, is a speck (absorbed)...
+CLEAN_SPECK = 4  # ...or than this in a clean render (its flat pixels within CLEAN_FLAT_MSE of their colours):
+CLEAN_FLAT_MSE = 1e-4  # a screenshot's small text and an icon's dots are no JPEG specks (issue 69)
 
 
 def hard_palette(image: np.ndarray, pixel: bool = False) -> tuple[np.ndarray, np.ndarray] | None:
@@ -96,7 +98,8 @@ def quantize(image: np.ndarray, colors: int | None, seed: int = 0, max_colors: i
             pixels = pixels[rng.choice(len(pixels), THIN_SAMPLE, replace=False)]
         centres = _thin_colors(pixels, centres, max_colors)
     labels = _assign(image, centres, flat)
-    return np.clip(centres, 0, 1), _absorb_specks(labels, max(2, min(h * w // 2000, MAX_SPECK)))
+    speck = CLEAN_SPECK if err.mean() <= CLEAN_FLAT_MSE else MAX_SPECK  # a clean render's small pieces are its own
+    return np.clip(centres, 0, 1), _absorb_specks(labels, max(2, min(h * w // 2000, speck)))
 
 
 PHOTO_COLORS = 12  # the palette of a posterised photo (``posterize``) unless --colors says

@@ -55,6 +55,7 @@ STROKE_LEVEL = 0.8  # a scanned thin stroke, blurred (sigma s), keeps its width 
 # (a Gaussian profile: p * exp(-0.78 p^2)); at half its peak, scanned text came out 15-50% bold (issue 69)
 FRINGE_CHROMA, FRINGE_STEP, FRINGE_EDGE = 0.1, 0.15, 0.9  # sub-pixel text: colourful pixels (channel spread),
 # nearly all of them within 2 px of a change in brightness along the row (``subpixel_grey``)
+SHADED = 0.02  # ink on paper has at most this share of in-between shades (``shaded_share``)
 BLACK_INK = 0.35  # ink of a scan darker than this (mean channel, after flattening) and ...
 NEUTRAL_INK = 0.12  # ... less colourful than this (channel spread) is black ink
 
@@ -106,7 +107,7 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
                        tone=(tone[0], half_max(tone[1])) if kind == "line" else tone)
     if preset in ("line", "logo") and tone is not None:
         return Reading(preset, picture, tone=(tone[0], half_max(tone[1])) if preset == "line" else tone)
-    noise = noise_sigma(picture)
+    noise = noise_sigma(picture) if max(h, w) > PIXEL_SIDE else 0.0  # a small icon's detail is no noise
     figures = {"noise": round(noise, 4)}
     if preset in ("scan", "line") or (preset is None and noise > GRAIN):  # a rendered picture has no paper to flatten
         flat, light = flattened(picture)
@@ -114,7 +115,7 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
         if preset is not None or noise > NOISE or light > UNEVEN:
             lum = smoothed(flat.mean(-1), noise)
             ink, alpha = ink_coverage(flat, lum)
-            if preset is not None or _is_two_tone(flat, ink):
+            if preset is not None or (_is_two_tone(flat, ink) and shaded_share(alpha) <= SHADED):
                 thin = ink_coverage(flat, lum, sharp=True)  # read at the darkest ink: thin strokes at their weight
                 kind = preset or ("line" if stroke_width(thin[1] >= 0.5) <= THIN else "scan")
                 if kind == "line":
@@ -128,6 +129,17 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
         return Reading("photo", smoothed(picture, max(noise, PHOTO_NOISE)), colors=PHOTO_COLORS, polish=False,
                        figures=figures, loose=PHOTO_LOOSE)
     return Reading("logo", smoothed(picture, noise) if noise > NOISE else picture, figures=figures)
+
+
+def shaded_share(alpha: np.ndarray) -> float:
+    """The share of pixels of ``alpha (H, W)`` (a reading as ink on paper) that are neither ink
+    nor paper (0.15-0.85) in a steady 3x3 neighbourhood (spread under 0.1): areas of an
+    in-between shade. A scan's in-between pixels are its strokes' edges (real scans and pages:
+    at most 0.002); a shaded icon's grey body is such an area (Oxygen's: 0.07-0.09)."""
+    from .ndops import extreme3
+
+    spread = extreme3(alpha[..., None], True)[..., 0] - extreme3(alpha[..., None], False)[..., 0]
+    return float(((alpha > 0.15) & (alpha < 0.85) & (spread < 0.1)).mean())
 
 
 def subpixel_grey(picture: np.ndarray) -> np.ndarray | None:
