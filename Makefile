@@ -5,7 +5,7 @@ PIP ?= .venv/bin/pip
 TORCH_PIN ?= torch==2.13.0
 TORCH_INDEX ?= https://download.pytorch.org/whl/cpu
 
-.PHONY: install test test-slow fuzz lint bench-scale train-fonts train-mnist train-emoji train-icons bench bench-cli bench-safety bench-hardening bench-realworld bench-morphs bench-sets bench-vectorize bench-outlines bench-solves bench-folder bench-speed bench-ratios bench-fill-bound docs results demo data-fonts data-mnist data-emoji data-icons clean
+.PHONY: install test test-slow fuzz lint bench-scale train-fonts train-mnist train-emoji train-icons bench bench-cli bench-safety bench-hardening bench-realworld bench-wild bench-morphs bench-sets bench-vectorize bench-outlines bench-solves bench-folder bench-speed bench-ratios bench-fill-bound docs results demo data-fonts data-mnist data-emoji data-icons clean
 
 install: .venv/.installed
 
@@ -53,6 +53,23 @@ bench-hardening: install
 # against potrace and vtracer in one run: docs/REALWORLD.md and its contact sheets in docs/realworld/. About 8 minutes.
 bench-realworld: bench-sets
 	$(PY) bench/realworld.py --markdown docs/REALWORLD.md
+
+# The pictures nobody made for it (issue 69): 128 real files (icon themes, clip art, photos, scanned pages,
+# screenshots, drawings) against potrace and vtracer, scored by MSE, edge F1 and OCR: docs/WILD.md and
+# docs/wild/ (results.json, contact sheets). The sources: Debian packages and two PyPI sdists (pinned). About 10 minutes.
+WILD_APT = adwaita-icon-theme tango-icon-theme oxygen-icon-theme openclipart-png tesseract-ocr tesseract-ocr-eng
+OPENCV_SDIST = https://files.pythonhosted.org/packages/3d/b2/c308bc696bf5d75304175c62222ec8af9a6d5cfe36c14f19f15ea9d1a132/opencv-python-headless-4.9.0.80.tar.gz
+bench-wild: bench-sets
+	command -v tesseract >/dev/null && test -d /usr/share/openclipart -a -d /usr/share/icons/Tango -a -d /usr/share/icons/oxygen || \
+	  (apt-get update -q && apt-get install -y -q $(WILD_APT))
+	$(PIP) install -q matplotlib
+	mkdir -p bench/.sets/wild-src && cd bench/.sets/wild-src && \
+	  (test -d opencv-python-headless-4.9.0.80 || (curl -sSfL -o cv.tar.gz $(OPENCV_SDIST) && \
+	    echo "71a4cd8cf7c37122901d8e81295db7fb188730e33a0e40039a4e59c1030b0958  cv.tar.gz" | sha256sum -c - && \
+	    tar -xzf cv.tar.gz --wildcards "*/samples/data/*" && rm cv.tar.gz)) && \
+	  (test -d ocrmypdf-17.13.0 || ($(abspath $(PY)) -m pip download -q --no-deps --no-binary :all: ocrmypdf==17.13.0 -d . && \
+	    tar -xzf ocrmypdf-17.13.0.tar.gz && rm ocrmypdf-17.13.0.tar.gz))
+	$(PY) bench/wild.py --markdown docs/WILD.md
 
 # Interpolations you would show (issue 36): 12 pairs of one character in two held-out faces (GNU FreeFont, Lato),
 # every frame scored for fidelity, topology, fill-rule agreement and jumps, with and without the fit; fonts and
