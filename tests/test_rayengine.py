@@ -85,8 +85,11 @@ def test_ctrl_c_on_ray_keeps_only_whole_svgs_and_ends_the_cluster(tmp_path):
     for i in range(62, 400):  # enough work to be interrupted
         (src / f"h{i}.png").write_bytes((src / f"g{i % 62:02d}.png").read_bytes())
     out = tmp_path / "out"
+    # SIGINT at its default in the child: a shell's background job (a CI script run as `cmd &`) starts
+    # with it ignored, and Python keeps ignoring it (the Ctrl-C then did nothing: exit 0, all written)
     p = subprocess.Popen(EXE + ["vectorize", str(src), "-o", str(out), "--engine", "ray", "-j", "2"],
-                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.time() + 300
     while time.time() < deadline and not (out.exists() and any(out.glob("*.svg"))):
         time.sleep(0.2)
