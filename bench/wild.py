@@ -59,7 +59,9 @@ OCR_SIDE = 4096
 
 
 def over_white(path: Path) -> np.ndarray:
-    """The picture as it looks: ``(H, W, 3)`` float64 in [0, 1], over white where transparent."""
+    """The picture as it looks: ``(H, W, 3)`` float64 in [0, 1], over white where transparent.
+    Read here with Pillow, not through im2vec's own ``files.load_picture``: the reference a tool is
+    scored against does not pass through the tool."""
     with Image.open(path) as im:
         rgba = np.asarray(im.convert("RGBA"), np.float64) / 255
     return rgba[..., :3] * rgba[..., 3:] + (1 - rgba[..., 3:])
@@ -82,15 +84,14 @@ def run_im2vec(folder: Path, out: Path) -> tuple[dict[str, str], float]:
     t = time.perf_counter()
     proc = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
     wall = time.perf_counter() - t
-    err = proc.stderr.decode()
+    lines = proc.stderr.decode().strip().splitlines()
     got = {}
     for f in sorted(folder.iterdir()):
         svg = out / (f.stem + ".svg")
         if svg.exists():
             got[f.name] = svg.read_text()
-        else:
-            line = next((ln for ln in err.splitlines() if f.name in ln), err.strip().splitlines()[-1:] or ["failed"])
-            got[f.name] = "error: " + (line if isinstance(line, str) else line[0])
+        else:  # its own error line, else the command's last
+            got[f.name] = "error: " + next((ln for ln in lines if f.name in ln), lines[-1] if lines else "failed")
     return got, wall
 
 
@@ -189,6 +190,8 @@ def run(src: Path, only: str | None) -> dict:
             (sub / r["file"]).symlink_to((folder / r["file"]).resolve())
         svgs, wall = run_im2vec(sub, Path(d) / "out")
     out_dir = src / "wild" / "svg"
+    for tool in TOOLS:
+        (out_dir / tool).mkdir(parents=True, exist_ok=True)
     times = {"im2vec": wall, "potrace": 0.0, "vtracer": 0.0}
     for r in rows:
         picture = over_white(folder / r["file"])
@@ -202,7 +205,6 @@ def run(src: Path, only: str | None) -> dict:
             else:
                 svg, sec = run_peer(tool, picture)
                 times[tool] += sec
-            (out_dir / tool).mkdir(parents=True, exist_ok=True)
             (out_dir / tool / f"{stem}.svg").write_text(svg)
             r[tool] = score(svg, picture, truth)
         if truth is not None:

@@ -23,11 +23,11 @@ def _table(rows: list[dict]) -> list[str]:
     for tool in TOOLS:
         got = [r[tool] for r in rows if "error" not in r[tool]]
         ocrs = [g["ocr"] for g in got if "ocr" in g]
-        out.append(f"| {tool} | {_med([g['mse'] for g in got])} | {_med([g['f1'] for g in got])} | "
-                   f"{statistics.mean(ocrs):.3f} | " if ocrs else
-                   f"| {tool} | {_med([g['mse'] for g in got])} | {_med([g['f1'] for g in got])} | – | ")
-        out[-1] += f"{statistics.median([g['paths'] for g in got]) if got else '–'} | " \
-                   f"{statistics.median([g['segments'] for g in got]) if got else '–'} | {len(rows) - len(got)} |"
+        cells = [_med([g["mse"] for g in got]), _med([g["f1"] for g in got]),
+                 f"{statistics.mean(ocrs):.3f}" if ocrs else "–",
+                 *(statistics.median([g[k] for g in got]) if got else "–" for k in ("paths", "segments")),
+                 len(rows) - len(got)]
+        out.append(f"| {tool} | " + " | ".join(map(str, cells)) + " |")
     return out
 
 

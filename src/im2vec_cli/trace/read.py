@@ -116,7 +116,8 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
             lum = smoothed(flat.mean(-1), noise)
             ink, alpha = ink_coverage(flat, lum)
             if preset is not None or (_is_two_tone(flat, ink) and shaded_share(alpha) <= SHADED):
-                thin = ink_coverage(flat, lum, sharp=True)  # read at the darkest ink: thin strokes at their weight
+                # read at the darkest ink, where thin strokes keep their weight (not needed for a forced scan)
+                thin = None if preset == "scan" else ink_coverage(flat, lum, sharp=True)
                 kind = preset or ("line" if stroke_width(thin[1] >= 0.5) <= THIN else "scan")
                 if kind == "line":
                     ink, alpha = thin
