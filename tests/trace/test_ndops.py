@@ -33,6 +33,19 @@ def test_pieces_match_scipy(seed):
 
 
 @pytest.mark.parametrize("seed", range(8))
+def test_equal_pieces_match_skimage(seed):
+    """Pieces of equal value, numbered in raster order, as skimage's multi-valued labelling finds them."""
+    from skimage.measure import label
+
+    rng = np.random.default_rng(seed)
+    for levels in (2, 3, 6):
+        values = rng.integers(0, levels, (int(rng.integers(1, 40)), int(rng.integers(1, 40))))
+        ids, n = ndops.equal_pieces(values)
+        ref = label(values + 1, background=0, connectivity=1)
+        assert n == ref.max() and np.array_equal(ids + 1, ref)
+
+
+@pytest.mark.parametrize("seed", range(8))
 def test_morphology_matches_scipy(seed):
     for m in masks(seed):
         for it in (1, 3):

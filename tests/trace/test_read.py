@@ -138,12 +138,21 @@ def test_despeckle_drops_small_pieces_and_holes_only():
     assert (despeckled(alpha, 0) == alpha).all()
 
 
-def test_a_photo_is_posterised():
+def test_a_photo_is_read_as_one_cut_into_pieces():
     import skimage.data
 
     photo = np.asarray(Image.fromarray(skimage.data.astronaut()).resize((128, 128), Image.LANCZOS)) / 255.0
     r = read(photo)
-    assert r.kind == "photo" and r.colors is not None and not r.polish
+    assert r.kind == "photo" and r.speck == 4 * 4 and not r.polish  # PHOTO_SPECK px a side
+    assert read(photo, speckle=5).speck == 25
+
+
+def test_a_grey_photo_is_a_photo():
+    """A grey photo's 16 grey levels at 4 bits a channel covered it whole: it read as a drawing."""
+    import skimage.data
+
+    grey = np.asarray(Image.fromarray(skimage.data.astronaut()).convert("L").resize((160, 160), Image.LANCZOS))
+    assert read(np.repeat(grey[..., None] / 255.0, 3, -1)).kind == "photo"
 
 
 @pytest.mark.parametrize("preset", ["scan", "logo", "line", "pixel", "photo"])

@@ -64,7 +64,7 @@ def clean_outlines(pictures: list[np.ndarray], run: Refinement | None, s: Plan =
         raise ValueError("a picture to polish needs a refinement")
     starts, info = _starts(pictures, run, s, readings, polish_these)
     chosen = choose(starts, run)
-    made = [start.outline(s.tolerance * r.loose) for start, r in zip(chosen, readings)]
+    made = [start.outline(s.tolerance) for start in chosen]
     tell = on_stage or (lambda _: None)
     tell(Stage("traced"))
     vecs, flags = [v for v, _, _ in made], [f for _, f, _ in made]

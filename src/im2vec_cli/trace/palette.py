@@ -102,7 +102,6 @@ def quantize(image: np.ndarray, colors: int | None, seed: int = 0, max_colors: i
     return np.clip(centres, 0, 1), _absorb_specks(labels, max(2, min(h * w // 2000, speck)))
 
 
-PHOTO_COLORS = 12  # the palette of a posterised photo (``posterize``) unless --colors says
 PHOTO_SPECK = 2e-4  # a photo's pieces smaller than this share of its pixels are absorbed (52 px at 512 px)
 
 

@@ -44,6 +44,7 @@ class Start:
     max_paths: int | None = None
     kind: str = ""  # what the picture was read as (``read.Reading.kind``): pixel art and photos are traced their way
     tone: tuple[np.ndarray, np.ndarray] | None = None  # a two-tone picture's ink and coverage (``read.Reading``)
+    speck: int = 0  # px: a photo's smallest piece (``read.Reading``)
 
     def outline(self, tol: float) -> tuple[VectorImage, Corners, bool]:
         """Fitted within ``tol`` px, even-odd: the contours of a clean shape do not overlap, so
@@ -51,17 +52,17 @@ class Start:
         (seconds on a picture of many regions). ``finish`` writes them nonzero. The flag:
         the outline is exact (``outline.traced``), not to be polished."""
         if self.paths is None:
-            vec, flags, exact = traced(self.picture, tol, self.colors, self.max_paths, self.kind, self.tone)
+            vec, flags, exact = traced(self.picture, tol, self.colors, self.max_paths, self.kind, self.tone, self.speck)
         else:
             (vec, flags), exact = redrawn(self.paths, tol, self.picture), False
         return with_rule(vec, "evenodd"), flags, exact
 
 
 def image_starts(pictures: list[np.ndarray], s: Plan, readings: list[Reading]) -> list[Start]:
-    """Each picture's own start: its regions traced as its reading says (``s.colors`` over the
-    reading's palette size, ``s.max_paths``)."""
-    return [Start("image", pic, colors=r.colors if s.colors is None else s.colors, max_paths=s.max_paths,
-                  kind=r.kind, tone=r.tone) for pic, r in zip(pictures, readings)]
+    """Each picture's own start: its regions traced as its reading says (``s.colors``,
+    ``s.max_paths``)."""
+    return [Start("image", pic, colors=s.colors, max_paths=s.max_paths,
+                  kind=r.kind, tone=r.tone, speck=r.speck) for pic, r in zip(pictures, readings)]
 
 
 def model_start_wanted(pictures: list[np.ndarray], s: Plan, readings: list[Reading], polish: list[bool]) -> list[int]:
@@ -72,9 +73,8 @@ def model_start_wanted(pictures: list[np.ndarray], s: Plan, readings: list[Readi
     size, coarser than the picture's own trace; and pixel art."""
     if not s.model_start:
         return []
-    colors = [r.colors if s.colors is None else s.colors for r in readings]
     return [i for i, pic in enumerate(pictures)
-            if colors[i] in (None, 1) and polish[i] and readings[i].kind != "pixel"
+            if s.colors in (None, 1) and polish[i] and readings[i].kind != "pixel"
             and (readings[i].tone is not None or two_tone(pic, background_color(pic)) is not None)]
 
 

@@ -9,8 +9,8 @@ picture it shows.
 - **line**: a two-tone drawing of thin (1-3 px) strokes, traced at half each stroke's own
   darkness (``half_max``), so that strokes thinner than a pixel stay whole;
 - **logo**: flat colours (glyphs, icons, logos, emoji), JPEG ringing smoothed first;
-- **photo**: a continuous-tone picture, smoothed and posterised to ``PHOTO_COLORS`` colours,
-  its curves fitted twice as loosely (a posterised region's edge is no exact outline).
+- **photo**: a continuous-tone picture, lightly smoothed (``PHOTO_SIGMA``) and cut into pieces of
+  one fine colour step (``photo.pieces``), none smaller than ``speckle``^2 px.
 
 Pixel art and photos are not polished through the renderer (the one exact, the other of too
 many segments); nor is any picture larger than the polish's size (``options.Plan.max_side``).
@@ -29,7 +29,8 @@ import numpy as np
 
 from ..options import PRESETS
 from .ndops import norm3
-from .palette import MAX_HARD_COLORS, PHOTO_COLORS, hard_palette
+from .palette import MAX_HARD_COLORS, hard_palette
+from .photo import looks_like_a_photo
 from .regions import background_color, two_tone
 
 KINDS = PRESETS[1:]  # the kinds of picture: options.PRESETS but "auto"
@@ -40,10 +41,9 @@ OFF_LINE = 0.15  # a flattened pixel this far (RGB) from the paper-ink line is a
 OFF_SHARE = 0.05  # ...and a picture with more than this share of them is no ink on paper (scans: under 0.3%,
 # photographed scribbles 3%, OpenMoji faces with a dark outline 12-24%: bench/realworld.py, bench/hardening.py)
 THIN = 3.5  # px: strokes at most this wide (median) make line art
-PHOTO_SHARE = 0.6  # a picture whose 16 commonest colours (4 bits a channel) cover less than this share is a photo
-PHOTO_NOISE = 0.02  # a photo is smoothed as if its noise were at least this (``smoothed``)
-PHOTO_LOOSE = 2.0  # a photo's curves are fitted within twice the tolerance: 5134 -> 2959 segments on
-# skimage's coffee, 6.7 -> 4.5 s
+PHOTO_SPECK = 4  # px a side: a photo's smallest piece unless --filter-speckle says (as vtracer's default)
+PHOTO_SIGMA = 0.5  # px: a photo's blur before it is cut into pieces (bench/wild.py's 17 tuned photos: edge F1
+# 0.79 at 0.7 px, 0.82 at 0.5 px, 0.82 with none, but 20% more paths)
 PIXEL_EDGES = 0.08  # native pixel art (no upscaling found) has at least this share of its pixels on a colour
 # edge (its pixels are its features: 0.3-0.9 on sprites); a hard-edged drawing of large shapes, its curves
 # aliased, has far fewer (flat circles at 384-512 px: 0.02-0.05) and is traced with smooth curves as a logo
@@ -64,24 +64,24 @@ NEUTRAL_INK = 0.12  # ... less colourful than this (channel spread) is black ink
 class Reading:
     """What a picture is (``kind``, one of ``KINDS``) and the clean ``picture (H', W', 3)`` to
     trace: the input's size, or for pixel art its block (``figures["block"]``) times smaller.
-    ``colors``: the palette size it asks for (photos), else ``None``. ``polish``: whether the
-    outline is worth polishing against the picture. ``figures``: what the reading measured.
-    ``tone``: a two-tone picture's ink and its coverage (``regions.two_tone``), found once."""
+    ``polish``: whether the outline is worth polishing against the picture. ``figures``: what the
+    reading measured. ``tone``: a two-tone picture's ink and its coverage (``regions.two_tone``),
+    found once. ``speck``: a photo's smallest piece."""
 
     kind: str
     picture: np.ndarray
-    colors: int | None = None
     polish: bool = True
     figures: dict | None = None
     tone: tuple[np.ndarray, np.ndarray] | None = None  # a two-tone picture's (ink (3,), coverage (H', W'))
-    loose: float = 1.0  # its curves are fitted within this many times the tolerance
+    speck: int = 0  # px (``photo.pieces``)
 
 
 def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = None) -> Reading:
     """The reading of ``picture (H, W, 3)`` in [0, 1]: of the kind ``preset`` (one of
     ``KINDS``) or, with ``None``, of the kind it looks like. ``speckle``: pieces smaller than
     this many px a side are dropped from scans and line art (``None``: 2 px, and 1 px more per
-    256 px of the picture's longer side)."""
+    256 px of the picture's longer side) and merged into their neighbours in a photo (``None``:
+    that, and at least ``PHOTO_SPECK``)."""
     h, w, _ = picture.shape
     speck = max(2, 2 + max(h, w) // 256) if speckle is None else speckle
     block = pixel_block(picture) if preset in (None, "pixel") else 1
@@ -126,9 +126,11 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
                 if kind == "line":
                     alpha = half_max(alpha, level=STROKE_LEVEL)
                 return Reading(kind, clean, figures=figures, tone=(ink, alpha) if alpha.max() >= 0.1 else None)
-    if preset == "photo" or (preset is None and color_share(picture, 16) < PHOTO_SHARE):
-        return Reading("photo", smoothed(picture, max(noise, PHOTO_NOISE)), colors=PHOTO_COLORS, polish=False,
-                       figures=figures, loose=PHOTO_LOOSE)
+    if preset == "photo" or (preset is None and looks_like_a_photo(picture)):
+        from .ndops import gaussian
+
+        piece = max(speck, PHOTO_SPECK) if speckle is None else speckle
+        return Reading("photo", gaussian(picture, PHOTO_SIGMA), polish=False, figures=figures, speck=piece * piece)
     return Reading("logo", smoothed(picture, noise) if noise > NOISE else picture, figures=figures)
 
 
@@ -240,14 +242,6 @@ def noise_sigma(picture: np.ndarray) -> float:
     mask = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], dtype=np.float64)
     r = convolve(gray, mask)[1:-1, 1:-1]
     return float(1.4826 * np.median(np.abs(r)) / 6 * np.sqrt(3))  # grey is the mean of 3 channels
-
-
-def color_share(picture: np.ndarray, k: int) -> float:
-    """The share of the pixels that the ``k`` commonest colours (4 bits a channel) cover: near 1
-    for flat colours, JPEG'd or not; about half or less for a photo."""
-    q = (picture[:: max(1, picture.shape[0] // 256), :: max(1, picture.shape[1] // 256)] * 15.999).astype(np.int64)
-    counts = np.bincount(((q[..., 0] << 8) | (q[..., 1] << 4) | q[..., 2]).ravel(), minlength=4096)
-    return float(np.sort(counts)[::-1][:k].sum() / counts.sum())
 
 
 SURFACE_DEGREE = 3  # the paper's light: a polynomial surface of this degree in x and y

@@ -32,7 +32,7 @@ import numpy as np
 from ..errors import TraceError
 from ..raster.curves import ring_area
 from .ndops import norm3
-from .palette import FLAT_BY_LEVELS, PHOTO_COLORS, _flat_pixels, hard_palette, posterize, quantize
+from .palette import FLAT_BY_LEVELS, _flat_pixels, hard_palette, posterize, quantize
 
 MAX_REGIONS = 10_000  # regions (or rings of a two-tone picture) traced at most: a few ms each...
 MAX_PIECES = 100_000  # ...and pieces at most when --max-paths keeps only the largest of them
@@ -125,7 +125,8 @@ def two_tone(image: np.ndarray, bg: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 
 
 def trace(image: np.ndarray, colors: int | None = None, max_regions: int | None = None,
-          seed: int = 0, kind: str = "", tone: tuple[np.ndarray, np.ndarray] | None = None) -> list[Region]:
+          seed: int = 0, kind: str = "", tone: tuple[np.ndarray, np.ndarray] | None = None,
+          speck: int = 0) -> list[Region]:
     """The regions of ``image (H, W, 3)`` in [0, 1], back to front.
 
     Args:
@@ -135,7 +136,8 @@ def trace(image: np.ndarray, colors: int | None = None, max_regions: int | None 
         max_regions: keep this many regions at most (the largest).
         kind: what ``read.read`` read the picture as. ``"pixel"``: its exact colours traced
             along its pixel edges, whatever their number (at most ``MAX_HARD_COLORS``) or
-            mixes; ``"photo"``: posterised (``palette.posterize``).
+            mixes; ``"photo"``: its pieces of one fine colour step, none under ``speck`` px
+            (``photo.pieces``), or with ``colors`` posterised to that many (``palette.posterize``).
         tone: ``two_tone(image, background_color(image))`` where it is known (``read.read``).
     """
     image = np.asarray(image, dtype=np.float64)
@@ -157,7 +159,12 @@ def trace(image: np.ndarray, colors: int | None = None, max_regions: int | None 
     if tone is not None:
         ink, alpha = tone
         return _with_background(bg, [Region(tuple(ink.tolist()), level_polygons(alpha))], image.shape)
-    palette, labels = posterize(image, colors or PHOTO_COLORS, seed) if kind == "photo" else quantize(image, colors, seed)
+    if kind == "photo" and colors is None:
+        from .photo import pieces
+
+        palette, labels = pieces(image, max(speck, 1))
+        return _with_background(bg, _stacked_regions(image, palette, labels, max_regions, each_one=True), image.shape)
+    palette, labels = posterize(image, colors, seed) if kind == "photo" else quantize(image, colors, seed)
     return _with_background(bg, _stacked_regions(image, palette, labels, max_regions), image.shape)
 
 
@@ -266,17 +273,22 @@ def _grown_box(box: tuple[slice, slice], margin: int, shape) -> tuple[slice, sli
             slice(max(xs.start - margin, 0), min(xs.stop + margin, shape[1])))
 
 
-def _pieces(palette: np.ndarray, labels: np.ndarray, max_regions: int | None
+def _pieces(palette: np.ndarray, labels: np.ndarray, max_regions: int | None, each_one: bool = False
             ) -> list[tuple[int, int, tuple, np.ndarray, np.ndarray]]:
     """Connected pieces of each colour but the white around the picture: ``(enclosed area,
-    colour, box, mask, filled)``, the masks within the piece's box (``BOX_MARGIN`` px wider)."""
+    colour, box, mask, filled)``, the masks within the piece's box (``BOX_MARGIN`` px wider).
+    ``each_one``: every label is one connected piece already (``photo.pieces``)."""
     from .ndops import fill_holes, pieces
 
+    if each_one:  # (label map, its number in it, box) of each label k
+        found = [[(labels, k, box)] for k, box in enumerate(_boxes(labels, len(palette)))]
+    else:
+        found = [[(lab, p, box) for p, box in enumerate(boxes, 1)]
+                 for lab, boxes in (pieces(labels == k, eight=True) for k in range(len(palette)))]
+    _check_pieces(sum(map(len, found)), f"pieces of {len(palette)} colours", max_regions)
     out = []
-    labelled = [pieces(labels == k, eight=True) for k in range(len(palette))]
-    _check_pieces(sum(len(boxes) for _, boxes in labelled), f"pieces of {len(palette)} colours", max_regions)
-    for k, (lab, boxes) in enumerate(labelled):
-        for p, box in enumerate(boxes, 1):
+    for k, each in enumerate(found):
+        for lab, p, box in each:
             box = _grown_box(box, BOX_MARGIN, labels.shape)
             mask = lab[box] == p
             if k == _white(palette) and _touches_border(mask, box, labels.shape):
@@ -286,15 +298,30 @@ def _pieces(palette: np.ndarray, labels: np.ndarray, max_regions: int | None
     return out
 
 
+def _boxes(labels: np.ndarray, n: int) -> list[tuple[slice, slice]]:
+    """The box of each label ``0..n-1`` of ``labels (H, W)`` (each present), as
+    ``scipy.ndimage.find_objects(labels + 1)`` gives them."""
+    h, w = labels.shape
+    flat = labels.ravel()
+    rows, cols = np.divmod(np.arange(h * w), w)
+    lo_y, lo_x, hi_y, hi_x = np.full(n, h), np.full(n, w), np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64)
+    np.minimum.at(lo_y, flat, rows)
+    np.minimum.at(lo_x, flat, cols)
+    np.maximum.at(hi_y, flat, rows)
+    np.maximum.at(hi_x, flat, cols)
+    return [(slice(a, b + 1), slice(c, d + 1)) for a, b, c, d in zip(lo_y.tolist(), hi_y.tolist(), lo_x.tolist(),
+                                                                       hi_x.tolist())]
+
+
 def _stacked_regions(image: np.ndarray, palette: np.ndarray, labels: np.ndarray, max_regions: int | None,
-                     exact: bool = False) -> list[Region]:
+                     exact: bool = False, each_one: bool = False) -> list[Region]:
     """Connected pieces of each colour, stacked largest (by enclosed area) at the back, each
     extended under the pieces above it; neighbouring pieces of one colour share a region.
     Each piece is worked out within its box. ``exact``: outlines along the pixel edges
     (``pixel_polygons``), else the sub-pixel 0.5 level of each piece's edge field."""
     from .ndops import dilate
 
-    pieces = sorted(_pieces(palette, labels, max_regions), key=lambda t: -t[0])
+    pieces = sorted(_pieces(palette, labels, max_regions, each_one), key=lambda t: -t[0])
     if max_regions is not None:
         pieces = pieces[:max_regions]
     above = np.zeros(labels.shape, dtype=bool)

@@ -1,0 +1,118 @@
+"""A photo's pieces: its colours in fine steps, each piece of one step its own region.
+
+A palette of a dozen colours (``palette.posterize``) cuts a photo's smooth shading into bands
+whose steps show as edges the photo does not have, and merges neighbours of near colours
+whose edge it does have. Here the photo's CIELAB values are cut into steps of ``STEP_L`` in
+lightness and ``STEP_AB`` in a and b (about 15 grey levels: under the step an edge detector
+sees), each 4-connected piece of one step is a piece, and pieces smaller than ``min_px`` are
+merged into the neighbour nearest in colour until none is left (and no more than ``MAX_PIECES``). Each piece keeps the mean
+colour of its pixels, so shading comes out as fine bands and edges stay where they are.
+
+``looks_like_a_photo`` tells a photo (continuous tone) from a drawing (flat colours), grey ones too.
+
+Frame: ``(H, W, 3)`` arrays in [0, 1], piece ids ``(H, W)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+STEP_L = 6.0  # CIELAB lightness of one step (of 100): about 15 levels of 255
+STEP_AB = 12.0  # a and b of one step: hue and saturation change less where the eye looks
+MERGE_ROUNDS = 16  # rounds of merging small pieces (each merges all of them at once; 4-8 are usual)
+PHOTO_SHARE = 0.6  # a picture whose 16 commonest colours (4 bits a channel) cover less than this share is a photo
+GREY_PHOTO_SHARE = 0.35  # a grey picture whose 16 commonest 8-bit grey levels cover less than this is a photo (4 bits
+# a channel leave a grey picture 16 colours in all): grey photos 0.16-0.24, grey drawings, icons and diagrams
+# 0.44-1.0 in bench/wild.py's pictures (a rendered clock's shading 0.44)
+GREY_SPREAD = 0.04  # a pixel whose channels are within this of each other is grey
+MAX_PIECES = 6000  # a photo of more pieces (grain, noise) has its smallest merged until it has no more: the 17
+# tuned photos of bench/wild.py have 600-7700 at 4 px; vtracer draws 1,400-6,000 paths on them
+
+
+def pieces(image: np.ndarray, min_px: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(colours (K, 3), ids (H, W))``: the photo ``image`` cut into pieces of one colour step,
+    none smaller than ``min_px`` px (but where a piece has no neighbour) and at most
+    ``MAX_PIECES`` of them (the smallest size raised until so), each of the mean colour of its
+    pixels."""
+    from .ndops import equal_pieces, rgb2lab
+
+    lab = rgb2lab(image)
+    steps = np.floor(lab / np.array([STEP_L, STEP_AB, STEP_AB])).astype(np.int64)
+    steps -= steps.reshape(-1, 3).min(0)
+    span = steps.reshape(-1, 3).max(0) + 1
+    ids, n = equal_pieces((steps[..., 0] * span[1] + steps[..., 1]) * span[2] + steps[..., 2])
+    ids, n = merged(ids, n, lab, min_px)
+    while n > MAX_PIECES:
+        min_px = min_px * n // MAX_PIECES + 1
+        ids, n = merged(ids, n, lab, min_px)
+    return _means(ids, n, image), ids
+
+
+def _means(ids: np.ndarray, n: int, values: np.ndarray) -> np.ndarray:
+    """``(n, C)`` the mean of ``values (H, W, C)`` over each piece of ``ids``."""
+    flat = ids.ravel()
+    area = np.maximum(np.bincount(flat, minlength=n), 1)
+    return np.stack([np.bincount(flat, values[..., c].ravel(), minlength=n) for c in range(values.shape[-1])],
+                    -1) / area[:, None]
+
+
+def merged(ids: np.ndarray, n: int, values: np.ndarray, min_px: int) -> tuple[np.ndarray, int]:
+    """Pieces ``ids (H, W)`` (0..n-1) with those smaller than ``min_px`` merged, round by round,
+    into the 4-neighbour whose mean of ``values (H, W, C)`` is nearest theirs: ``(ids, n)``.
+    A piece and the one it picks may pick each other: the larger takes the smaller. No other
+    loop is possible (each pick is the nearest, so the distances along a loop could not
+    all fall), and chains are followed to their end."""
+    for _ in range(MERGE_ROUNDS):
+        area = np.bincount(ids.ravel(), minlength=n)
+        small = area < min_px
+        if not small.any():
+            break
+        mean = _means(ids, n, values)
+        a = np.concatenate([ids[:, 1:].ravel(), ids[1:].ravel()])
+        b = np.concatenate([ids[:, :-1].ravel(), ids[:-1].ravel()])
+        a, b = np.concatenate([a, b]), np.concatenate([b, a])  # each touching pair both ways
+        keep = (a != b) & small[a]
+        if not keep.any():
+            break
+        a, b = a[keep], b[keep]
+        order = np.lexsort((b, ((mean[a] - mean[b]) ** 2).sum(-1), a))  # per small piece, nearest first
+        a, b = a[order], b[order]
+        first = np.r_[True, a[1:] != a[:-1]]
+        parent = np.arange(n)
+        parent[a[first]] = b[first]
+        me = np.arange(n)
+        mutual = (parent != me) & (parent[parent] == me)
+        stays = mutual & ((area > area[parent]) | ((area == area[parent]) & (me < parent)))
+        parent[stays] = me[stays]
+        while True:
+            up = parent[parent]
+            if (up == parent).all():
+                break
+            parent = up
+        roots, parent = np.unique(parent, return_inverse=True)
+        ids, n = parent[ids], len(roots)
+    return ids, n
+
+
+def looks_like_a_photo(picture: np.ndarray) -> bool:
+    """Whether ``picture (H, W, 3)`` is continuous tone: its 16 commonest colours cover less than
+    ``PHOTO_SHARE`` of it, or, grey, its 16 commonest grey levels less than ``GREY_PHOTO_SHARE``."""
+    return color_share(picture, 16) < PHOTO_SHARE or grey_share(picture) < GREY_PHOTO_SHARE
+
+
+def color_share(picture: np.ndarray, k: int) -> float:
+    """The share of the pixels that the ``k`` commonest colours (4 bits a channel) cover: near 1
+    for flat colours, JPEG'd or not; about half or less for a photo."""
+    q = (picture[:: max(1, picture.shape[0] // 256), :: max(1, picture.shape[1] // 256)] * 15.999).astype(np.int64)
+    counts = np.bincount(((q[..., 0] << 8) | (q[..., 1] << 4) | q[..., 2]).ravel(), minlength=4096)
+    return float(np.sort(counts)[::-1][:k].sum() / counts.sum())
+
+
+def grey_share(picture: np.ndarray, k: int = 16) -> float:
+    """For a grey picture (all its pixels grey within ``GREY_SPREAD``), the share of its pixels
+    that its ``k`` commonest 8-bit grey levels cover; 1 for a picture in colour."""
+    sample = picture[:: max(1, picture.shape[0] // 256), :: max(1, picture.shape[1] // 256)]
+    if (np.ptp(sample, axis=-1) > GREY_SPREAD).any():
+        return 1.0
+    counts = np.bincount((sample.mean(-1) * 255.999).astype(np.int64).ravel(), minlength=256)
+    return float(np.sort(counts)[::-1][:k].sum() / counts.sum())
