@@ -84,3 +84,41 @@ def test_noise_is_merged_down_to_the_bound(monkeypatch):
     noise = np.random.default_rng(0).random((64, 64, 3))
     colours, ids = pieces(noise, 4)
     assert 1 < len(colours) <= 50 and equal_pieces(ids)[1] == len(colours)
+
+
+def drawing(size: int = 160, shaded: bool = False) -> np.ndarray:
+    """Three overlapping discs on white, anti-aliased (4x supersampled); ``shaded``: each lit from
+    its top left, a smooth radial gradient from its colour to white."""
+    s = 4 * size
+    yy, xx = (np.mgrid[:s, :s] + 0.5) / 4
+    image = np.ones((s, s, 3))
+    for (cy, cx, r), colour in zip([(60, 60, 40), (90, 100, 45), (110, 50, 30)],
+                                   [(0.9, 0.2, 0.1), (0.1, 0.4, 0.8), (0.2, 0.7, 0.2)]):
+        d = np.hypot(yy - cy, xx - cx)
+        inside = d < r
+        light = np.clip(np.hypot(yy - cy + r / 2, xx - cx + r / 2) / (1.5 * r), 0, 1)[..., None] if shaded else 1.0
+        image[inside] = (1 - (1 - np.array(colour)) * light)[inside] if shaded else colour
+    return image.reshape(size, 4, size, 4, 3).mean((1, 3))
+
+
+def test_shading_is_drawn_by_pieces_and_flat_colours_by_a_palette():
+    from im2vec_cli.trace.photo import agrees_better
+    from im2vec_cli.trace.read import read
+
+    flat, shaded = drawing(), drawing(shaded=True)
+    assert not agrees_better(flat, 16)[0] and read(flat).kind == "logo"
+    better, agreement = agrees_better(shaded, 16)
+    assert better and agreement["photo_edges"] >= agreement["logo_edges"] + 0.03
+    assert read(shaded).kind == "photo" and read(shaded, "logo").kind == "logo"  # a preset is obeyed
+
+
+def test_edge_agreement():
+    from im2vec_cli.trace.photo import edge_agreement
+
+    pic = drawing()
+    assert edge_agreement(pic, pic) == 1.0
+    assert edge_agreement(pic, np.ones_like(pic)) == 0.0 and edge_agreement(np.ones_like(pic), np.ones_like(pic)) == 1.0
+    bars = np.ones((64, 64, 3))
+    bars[:, 10:20] = bars[:, 40:50] = 0.2  # vertical edges 10 px apart or more
+    shifted = np.roll(bars, 3, axis=1)  # every edge 3 px off: none within 1.5 px
+    assert edge_agreement(bars, shifted) < 0.05 and edge_agreement(bars, np.roll(bars, 1, axis=1)) > 0.95

@@ -8,7 +8,9 @@ sees), each 4-connected piece of one step is a piece, and pieces smaller than ``
 merged into the neighbour nearest in colour until none is left (and no more than ``MAX_PIECES``). Each piece keeps the mean
 colour of its pixels, so shading comes out as fine bands and edges stay where they are.
 
-``looks_like_a_photo`` tells a photo (continuous tone) from a drawing (flat colours), grey ones too.
+``looks_like_a_photo`` tells a photo (continuous tone) from a drawing (flat colours), grey ones too;
+``agrees_better`` whether a drawing with shading (a gradient-filled icon, a shaded fish) is drawn
+closer by a photo's pieces than by its palette's regions.
 
 Frame: ``(H, W, 3)`` arrays in [0, 1], piece ids ``(H, W)``.
 """
@@ -25,6 +27,13 @@ GREY_PHOTO_SHARE = 0.35  # a grey picture whose 16 commonest 8-bit grey levels c
 # a channel leave a grey picture 16 colours in all): grey photos 0.16-0.24, grey drawings, icons and diagrams
 # 0.44-1.0 in bench/wild.py's pictures (a rendered clock's shading 0.44)
 GREY_SPREAD = 0.04  # a pixel whose channels are within this of each other is grey
+PHOTO_SIGMA = 0.5  # px: a photo's blur before it is cut into pieces (bench/wild.py's 17 tuned photos: edge F1
+# 0.79 at 0.7 px, 0.82 at 0.5 px, 0.82 with none, but 20% more paths)
+AGREE_MARGIN = 0.03  # edge F1 by which a drawing's pieces must agree better with it than its palette's regions
+# (bench/wild.py's tuned drawings: 0.04-0.33 better where the pieces' trace was at or above both peers and the
+# palette's was not; a 100 px star 0.30 better where the palette's trace was already exact)
+AGREE_PIXELS = 1024 * 1024  # a larger drawing is not judged (a quantise and a cut: about 1 s a megapixel, 6 s
+# on a 2100 px diagram; an area-averaged copy blurs thin lines and misjudges diagrams)
 MAX_PIECES = 6000  # a photo of more pieces (grain, noise) has its smallest merged until it has no more: the 17
 # tuned photos of bench/wild.py have 600-7700 at 4 px; vtracer draws 1,400-6,000 paths on them
 
@@ -116,3 +125,40 @@ def grey_share(picture: np.ndarray, k: int = 16) -> float:
         return 1.0
     counts = np.bincount((sample.mean(-1) * 255.999).astype(np.int64).ravel(), minlength=256)
     return float(np.sort(counts)[::-1][:k].sum() / counts.sum())
+
+
+def agrees_better(picture: np.ndarray, min_px: int, seed: int = 0) -> tuple[bool, dict]:
+    """Whether the drawing ``picture (H, W, 3)`` (multi-colour, not hard-edged) agrees better with
+    itself cut into a photo's ``pieces`` (as ``read.read`` cuts a photo) than quantised to its
+    palette (``palette.quantize``, as a logo is): each drawn as a raster of its labels' colours,
+    the pieces' edges agree by at least ``AGREE_MARGIN`` more (``edge_agreement``) and their
+    pixel error is no larger. With the two agreements, for ``-v``."""
+    from .ndops import gaussian
+    from .palette import quantize
+
+    palette, labels = quantize(picture, None, seed)
+    colours, ids = pieces(gaussian(picture, PHOTO_SIGMA), min_px)
+    logo, photo = palette[labels], colours[ids]
+    edges = {"logo_edges": edge_agreement(picture, logo), "photo_edges": edge_agreement(picture, photo)}
+    better = edges["photo_edges"] >= edges["logo_edges"] + AGREE_MARGIN and (
+        ((photo - picture) ** 2).mean() <= ((logo - picture) ** 2).mean())
+    return bool(better), {k: round(v, 3) for k, v in edges.items()}
+
+
+def edge_agreement(picture: np.ndarray, drawn: np.ndarray, within: float = 1.5) -> float:
+    """F1 of the edges of ``drawn`` against those of ``picture`` (both ``(H, W, 3)`` in [0, 1]):
+    Canny's (on grey blurred by a Gaussian of 1 px, thresholds 50 and 150 of 255), an edge found
+    where the other has one within ``within`` px; 1 where neither has any (bench/wild.py's score)."""
+    import cv2
+
+    def found(rgb: np.ndarray) -> np.ndarray:
+        grey = cv2.cvtColor((np.clip(rgb, 0, 1) * 255).round().astype(np.uint8), cv2.COLOR_RGB2GRAY)
+        return cv2.Canny(cv2.GaussianBlur(grey, (0, 0), 1.0), 50, 150) > 0
+
+    a, b = found(picture), found(drawn)
+    if not a.any() or not b.any():
+        return float(a.any() == b.any())
+    near_a = cv2.distanceTransform((~a).astype(np.uint8), cv2.DIST_L2, 5) <= within
+    near_b = cv2.distanceTransform((~b).astype(np.uint8), cv2.DIST_L2, 5) <= within
+    precision, recall = (b & near_a).sum() / b.sum(), (a & near_b).sum() / a.sum()
+    return float(2 * precision * recall / max(precision + recall, 1e-12))

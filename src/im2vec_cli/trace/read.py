@@ -30,7 +30,7 @@ import numpy as np
 from ..options import PRESETS
 from .ndops import norm3
 from .palette import MAX_HARD_COLORS, hard_palette
-from .photo import looks_like_a_photo
+from .photo import AGREE_PIXELS, PHOTO_SIGMA, agrees_better, looks_like_a_photo
 from .regions import background_color, two_tone
 
 KINDS = PRESETS[1:]  # the kinds of picture: options.PRESETS but "auto"
@@ -42,8 +42,6 @@ OFF_SHARE = 0.05  # ...and a picture with more than this share of them is no ink
 # photographed scribbles 3%, OpenMoji faces with a dark outline 12-24%: bench/realworld.py, bench/hardening.py)
 THIN = 3.5  # px: strokes at most this wide (median) make line art
 PHOTO_SPECK = 4  # px a side: a photo's smallest piece unless --filter-speckle says (as vtracer's default)
-PHOTO_SIGMA = 0.5  # px: a photo's blur before it is cut into pieces (bench/wild.py's 17 tuned photos: edge F1
-# 0.79 at 0.7 px, 0.82 at 0.5 px, 0.82 with none, but 20% more paths)
 PIXEL_EDGES = 0.08  # native pixel art (no upscaling found) has at least this share of its pixels on a colour
 # edge (its pixels are its features: 0.3-0.9 on sprites); a hard-edged drawing of large shapes, its curves
 # aliased, has far fewer (flat circles at 384-512 px: 0.02-0.05) and is traced with smooth curves as a logo
@@ -126,12 +124,23 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
                 if kind == "line":
                     alpha = half_max(alpha, level=STROKE_LEVEL)
                 return Reading(kind, clean, figures=figures, tone=(ink, alpha) if alpha.max() >= 0.1 else None)
+    piece = max(speck, PHOTO_SPECK) ** 2 if speckle is None else speckle**2
     if preset == "photo" or (preset is None and looks_like_a_photo(picture)):
-        from .ndops import gaussian
+        return _photo(picture, figures, piece)
+    logo = smoothed(picture, noise) if noise > NOISE else picture
+    if preset is None and not hard and h * w <= AGREE_PIXELS:  # shading drawn closer by pieces than palette bands
+        better, agreement = agrees_better(logo, piece)
+        figures.update(agreement)
+        if better:
+            return _photo(picture, figures, piece)
+    return Reading("logo", logo, figures=figures)
 
-        piece = max(speck, PHOTO_SPECK) if speckle is None else speckle
-        return Reading("photo", gaussian(picture, PHOTO_SIGMA), polish=False, figures=figures, speck=piece * piece)
-    return Reading("logo", smoothed(picture, noise) if noise > NOISE else picture, figures=figures)
+
+def _photo(picture: np.ndarray, figures: dict, piece: int) -> Reading:
+    """The reading of ``picture`` as a photo whose smallest piece is ``piece`` px."""
+    from .ndops import gaussian
+
+    return Reading("photo", gaussian(picture, PHOTO_SIGMA), polish=False, figures=figures, speck=piece)
 
 
 def shaded_share(alpha: np.ndarray) -> float:
