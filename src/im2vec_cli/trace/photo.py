@@ -34,6 +34,8 @@ AGREE_MARGIN = 0.03  # edge F1 by which a drawing's pieces must agree better wit
 # palette's was not; a 100 px star 0.30 better where the palette's trace was already exact)
 AGREE_PIXELS = 1024 * 1024  # a larger drawing is not judged (a quantise and a cut: about 1 s a megapixel, 6 s
 # on a 2100 px diagram; an area-averaged copy blurs thin lines and misjudges diagrams)
+GRAIN_PIECES = 0.75  # pieces of one step per pixel above which a picture is noise (RGB noise 0.99; the most
+GRAIN_SIGMA = 2.0  # px: textured of bench/wild.py's photos, fur and a painting, 0.49): cut after this blur
 MAX_PIECES = 6000  # a photo of more pieces (grain, noise) has its smallest merged until it has no more: the 17
 # tuned photos of bench/wild.py have 600-7700 at 4 px; vtracer draws 1,400-6,000 paths on them
 
@@ -43,18 +45,26 @@ def pieces(image: np.ndarray, min_px: int) -> tuple[np.ndarray, np.ndarray]:
     none smaller than ``min_px`` px (but where a piece has no neighbour) and at most
     ``MAX_PIECES`` of them (the smallest size raised until so), each of the mean colour of its
     pixels."""
-    from .ndops import equal_pieces, rgb2lab
+    from .ndops import equal_pieces, gaussian, rgb2lab
 
     lab = rgb2lab(image)
-    steps = np.floor(lab / np.array([STEP_L, STEP_AB, STEP_AB])).astype(np.int64)
-    steps -= steps.reshape(-1, 3).min(0)
-    span = steps.reshape(-1, 3).max(0) + 1
-    ids, n = equal_pieces((steps[..., 0] * span[1] + steps[..., 1]) * span[2] + steps[..., 2])
+    ids, n = equal_pieces(_steps(lab))
+    if n > GRAIN_PIECES * ids.size:  # noise, not a photo: its pieces from a blurred copy, fewer and rounder
+        lab = rgb2lab(gaussian(image, GRAIN_SIGMA))
+        ids, n = equal_pieces(_steps(lab))
     ids, n = merged(ids, n, lab, min_px)
     while n > MAX_PIECES:
         min_px = min_px * n // MAX_PIECES + 1
         ids, n = merged(ids, n, lab, min_px)
     return _means(ids, n, image), ids
+
+
+def _steps(lab: np.ndarray) -> np.ndarray:
+    """``(H, W)`` the number of each pixel's colour step (``STEP_L``, ``STEP_AB``) of CIELAB ``lab``."""
+    steps = np.floor(lab / np.array([STEP_L, STEP_AB, STEP_AB])).astype(np.int64)
+    steps -= steps.reshape(-1, 3).min(0)
+    span = steps.reshape(-1, 3).max(0) + 1
+    return (steps[..., 0] * span[1] + steps[..., 1]) * span[2] + steps[..., 2]
 
 
 def _means(ids: np.ndarray, n: int, values: np.ndarray) -> np.ndarray:
