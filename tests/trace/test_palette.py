@@ -89,3 +89,23 @@ def test_a_clean_renders_small_pieces_are_kept_and_a_jpegs_specks_absorbed():
 
     pieces = [np.bincount(label(jl == k)[0].ravel())[1:] for k in np.unique(jl)]
     assert min(int(p.min()) for p in pieces if len(p)) >= 24  # a JPEG's speck size: its specks absorbed
+
+
+def test_quantize_keeps_its_last_results(monkeypatch):
+    """read.read judges a drawing by its palette and the trace quantises the same picture again:
+    the second call is the first's result (a copy: changing it changes nothing kept)."""
+    import im2vec_cli.trace.palette as palette
+
+    calls = []
+    real = palette._quantize
+    monkeypatch.setattr(palette, "_quantize", lambda *a, **k: calls.append(1) or real(*a, **k))
+    monkeypatch.setattr(palette, "_kept", {})
+    pic = np.random.default_rng(3).random((24, 24, 3))
+    p1, l1 = quantize(pic, None)
+    l1[:] = -1
+    p2, l2 = quantize(pic.copy(), None)
+    assert len(calls) == 1 and (l2 >= 0).all() and np.array_equal(p1, p2)
+    quantize(pic, 3)
+    quantize(pic + 0.001, None)
+    quantize(pic, None)  # kept are the last two: this one was pushed out
+    assert len(calls) == 4

@@ -129,7 +129,8 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
         return _photo(picture, figures, piece)
     logo = smoothed(picture, noise) if noise > NOISE else picture
     if preset is None and not hard and h * w <= AGREE_PIXELS:  # shading drawn closer by pieces than palette bands
-        better, agreement = agrees_better(logo, piece)
+        better, agreement = agrees_better(logo.astype(np.float32).astype(np.float64), piece)  # as the trace sees
+        # it (trace.batch.read_pictures), so that the trace finds its palette kept (palette.quantize)
         figures.update(agreement)
         if better:
             return _photo(picture, figures, piece)
