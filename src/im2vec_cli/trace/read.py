@@ -7,16 +7,14 @@ picture it shows.
   brightness fitted by a smooth surface and divided out), the noise and JPEG ringing smoothed
   away, and the result read as ink on white paper; black-looking ink becomes black;
 - **line**: a two-tone drawing of thin (1-3 px) strokes, traced at half each stroke's own
-  darkness (``half_max``), so that strokes thinner than a pixel stay whole;
+  darkness (``half_max``), so that strokes thinner than a pixel stay whole; a scan's and line
+  art's pieces and holes under ``speckle`` x ``speckle`` px are dropped (``--filter-speckle``);
 - **logo**: flat colours (glyphs, icons, logos, emoji), JPEG ringing smoothed first;
 - **photo**: a continuous-tone picture, lightly smoothed (``PHOTO_SIGMA``) and cut into pieces of
   one fine colour step (``photo.pieces``), none smaller than ``speckle``^2 px.
 
 Pixel art and photos are not polished through the renderer (the one exact, the other of too
 many segments); nor is any picture larger than the polish's size (``options.Plan.max_side``).
-
-Pieces (and holes) smaller than ``speckle`` x ``speckle`` px are dropped from scans and line
-art (``--filter-speckle``, as vtracer has).
 
 Frame: ``(H, W, 3)`` float arrays in [0, 1].
 """
@@ -28,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..options import PRESETS
-from .ndops import norm3
+from .ndops import gaussian, norm3
 from .palette import MAX_HARD_COLORS, hard_palette
 from .photo import AGREE_PIXELS, PHOTO_SIGMA, agrees_better, looks_like_a_photo
 from .regions import background_color, two_tone
@@ -127,10 +125,16 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
     piece = max(speck, PHOTO_SPECK) ** 2 if speckle is None else speckle**2
     if preset == "photo" or (preset is None and looks_like_a_photo(picture)):
         return _photo(picture, figures, piece)
+    return _logo_or_photo(picture, noise, figures, piece, judge=preset is None and not hard and h * w <= AGREE_PIXELS)
+
+
+def _logo_or_photo(picture: np.ndarray, noise: float, figures: dict, piece: int, judge: bool) -> Reading:
+    """A drawing read as a logo or, ``judge``-d so, as a photo where a photo's pieces draw it closer
+    (``photo.agrees_better``, on the picture cast through float32 as ``batch.read_pictures`` casts
+    it, so that the trace finds the palette ``palette.quantize`` kept)."""
     logo = smoothed(picture, noise) if noise > NOISE else picture
-    if preset is None and not hard and h * w <= AGREE_PIXELS:  # shading drawn closer by pieces than palette bands
-        better, agreement = agrees_better(logo.astype(np.float32).astype(np.float64), piece)  # as the trace sees
-        # it (trace.batch.read_pictures), so that the trace finds its palette kept (palette.quantize)
+    if judge:
+        better, agreement = agrees_better(logo.astype(np.float32).astype(np.float64), piece)
         figures.update(agreement)
         if better:
             return _photo(picture, figures, piece)
@@ -138,9 +142,7 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
 
 
 def _photo(picture: np.ndarray, figures: dict, piece: int) -> Reading:
-    """The reading of ``picture`` as a photo whose smallest piece is ``piece`` px."""
-    from .ndops import gaussian
-
+    """``picture`` read as a photo whose smallest piece is ``piece`` px."""
     return Reading("photo", gaussian(picture, PHOTO_SIGMA), polish=False, figures=figures, speck=piece)
 
 
@@ -312,7 +314,7 @@ def smoothed(picture: np.ndarray, noise: float) -> np.ndarray:
     """``picture`` (``(H, W)`` or ``(H, W, 3)``) with noise of ``noise`` sigma and JPEG ringing
     smoothed away, edges kept: a 3x3 median (specks, ringing), then a Gaussian as wide as the
     noise asks."""
-    from .ndops import gaussian, median3
+    from .ndops import median3
 
     return gaussian(median3(picture), min(1.5, 0.5 + 25 * noise))
 
