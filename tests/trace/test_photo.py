@@ -110,6 +110,7 @@ def test_shading_is_drawn_by_pieces_and_flat_colours_by_a_palette():
     better, agreement = agrees_better(shaded, 16)
     assert better and agreement["photo_edges"] >= agreement["logo_edges"] + 0.03
     assert read(shaded).kind == "photo" and read(shaded, "logo").kind == "logo"  # a preset is obeyed
+    assert read(shaded, colors=6).kind == "logo"  # and so is --colors: a palette of 6, not judged
 
 
 def test_edge_agreement():

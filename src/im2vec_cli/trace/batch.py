@@ -73,10 +73,11 @@ def workable(picture: np.ndarray, most: int) -> np.ndarray:
 
 def read_pictures(pictures: list[np.ndarray], s: Plan) -> list[Reading]:
     """Each picture (at most ``s.work_pixels`` pixels, ``workable``) read (``read.read``, as
-    ``s.preset`` and ``s.speckle`` say); its clean picture as refinement sees it, in float32."""
+    ``s.preset``, ``s.speckle`` and ``s.colors`` say); its clean picture as refinement sees it,
+    in float32."""
     out = []
     for pic in pictures:
-        r = read(workable(pic, s.work_pixels).astype(np.float64), s.preset, s.speckle)
+        r = read(workable(pic, s.work_pixels).astype(np.float64), s.preset, s.speckle, s.colors)
         out.append(dataclasses.replace(r, picture=r.picture.astype(np.float32).astype(np.float64)))
     return out
 

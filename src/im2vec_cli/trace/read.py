@@ -72,12 +72,13 @@ class Reading:
     speck: int = 0  # px (``photo.pieces``)
 
 
-def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = None) -> Reading:
-    """The reading of ``picture (H, W, 3)`` in [0, 1]: of the kind ``preset`` (one of
-    ``KINDS``) or, with ``None``, of the kind it looks like. ``speckle``: pieces smaller than
-    this many px a side are dropped from scans and line art (``None``: 2 px, and 1 px more per
-    256 px of the picture's longer side) and merged into their neighbours in a photo (``None``:
-    that, and at least ``PHOTO_SPECK``)."""
+def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = None, colors: int | None = None
+         ) -> Reading:
+    """The reading of ``picture (H, W, 3)`` in [0, 1]: of the kind ``preset`` (one of ``KINDS``)
+    or, with ``None``, of the kind it looks like. ``speckle``: pieces smaller than this many px a
+    side are dropped from scans and line art (``None``: 2 px, and 1 px more per 256 px of the
+    longer side) and merged into their neighbours in a photo (``None``: that, at least
+    ``PHOTO_SPECK``). ``colors`` (``--colors``): a drawing is read as a logo of that palette."""
     h, w, _ = picture.shape
     speck = max(2, 2 + max(h, w) // 256) if speckle is None else speckle
     block = pixel_block(picture) if preset in (None, "pixel") else 1
@@ -125,13 +126,13 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
     piece = max(speck, PHOTO_SPECK) ** 2 if speckle is None else speckle**2
     if preset == "photo" or (preset is None and looks_like_a_photo(picture)):
         return _photo(picture, figures, piece)
-    return _logo_or_photo(picture, noise, figures, piece, judge=preset is None and not hard and h * w <= AGREE_PIXELS)
+    judge = preset is None and colors is None and not hard and h * w <= AGREE_PIXELS
+    return _logo_or_photo(picture, noise, figures, piece, judge)
 
 
 def _logo_or_photo(picture: np.ndarray, noise: float, figures: dict, piece: int, judge: bool) -> Reading:
-    """A drawing read as a logo or, ``judge``-d so, as a photo where a photo's pieces draw it closer
-    (``photo.agrees_better``, on the picture cast through float32 as ``batch.read_pictures`` casts
-    it, so that the trace finds the palette ``palette.quantize`` kept)."""
+    """A drawing read as a logo or, ``judge``-d so, as a photo where its pieces draw it closer (``photo.agrees_better``,
+    on the picture cast through float32 as ``batch.read_pictures`` casts it: the trace finds the palette kept)."""
     logo = smoothed(picture, noise) if noise > NOISE else picture
     if judge:
         better, agreement = agrees_better(logo.astype(np.float32).astype(np.float64), piece)
@@ -141,8 +142,7 @@ def _logo_or_photo(picture: np.ndarray, noise: float, figures: dict, piece: int,
     return Reading("logo", logo, figures=figures)
 
 
-def _photo(picture: np.ndarray, figures: dict, piece: int) -> Reading:
-    """``picture`` read as a photo whose smallest piece is ``piece`` px."""
+def _photo(picture: np.ndarray, figures: dict, piece: int) -> Reading:  # its smallest piece ``piece`` px
     return Reading("photo", gaussian(picture, PHOTO_SIGMA), polish=False, figures=figures, speck=piece)
 
 
