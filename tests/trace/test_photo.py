@@ -1,6 +1,5 @@
 """A photo cut into pieces of one fine colour step (trace/photo.py), and vectorized from them."""
 
-import cv2
 import numpy as np
 import pytest
 import scipy.ndimage as ndi
@@ -8,7 +7,7 @@ from PIL import Image
 
 from im2vec_cli import api
 from im2vec_cli.trace.ndops import equal_pieces
-from im2vec_cli.trace.photo import pieces
+from im2vec_cli.trace.photo import edge_agreement, pieces
 from im2vec_cli.trace.regions import _boxes
 from im2vec_cli.vector import rasterize_svg
 
@@ -51,20 +50,6 @@ def test_boxes_match_scipy():
     assert _boxes(labels, 9) == ndi.find_objects(labels + 1)
 
 
-def edges(rgb: np.ndarray) -> np.ndarray:
-    grey = cv2.cvtColor((np.clip(rgb, 0, 1) * 255).round().astype(np.uint8), cv2.COLOR_RGB2GRAY)
-    return cv2.Canny(cv2.GaussianBlur(grey, (0, 0), 1.0), 50, 150) > 0
-
-
-def edge_f1(picture: np.ndarray, render: np.ndarray, within: float = 1.5) -> float:
-    """Canny edges of the render against the picture's, matched within ``within`` px (bench/wild.py's score)."""
-    a, b = edges(picture), edges(render)
-    near_a = cv2.distanceTransform((~a).astype(np.uint8), cv2.DIST_L2, 5) <= within
-    near_b = cv2.distanceTransform((~b).astype(np.uint8), cv2.DIST_L2, 5) <= within
-    precision, recall = (b & near_a).sum() / b.sum(), (a & near_b).sum() / a.sum()
-    return float(2 * precision * recall / (precision + recall))
-
-
 def test_a_photo_keeps_its_edges():
     """scikit-image's astronaut at 192 px: the vector photo's edges are the photo's."""
     import skimage.data
@@ -72,7 +57,7 @@ def test_a_photo_keeps_its_edges():
     photo = np.asarray(Image.fromarray(skimage.data.astronaut()).resize((192, 192), Image.LANCZOS)) / 255.0
     vec = api.vectorize(photo)
     render = rasterize_svg(vec.to_svg(), 192, 192)
-    assert edge_f1(photo, render) >= 0.87 and ((render - photo) ** 2).mean() <= 0.0045  # measured: 0.89, 0.0034
+    assert edge_agreement(photo, render) >= 0.87 and ((render - photo) ** 2).mean() <= 0.0045  # measured: 0.89, 0.0034
     # posterised to 12 colours (--colors 12, the way photos were traced before): 0.85, 0.0055
 
 
@@ -114,8 +99,6 @@ def test_shading_is_drawn_by_pieces_and_flat_colours_by_a_palette():
 
 
 def test_edge_agreement():
-    from im2vec_cli.trace.photo import edge_agreement
-
     pic = drawing()
     assert edge_agreement(pic, pic) == 1.0
     assert edge_agreement(pic, np.ones_like(pic)) == 0.0 and edge_agreement(np.ones_like(pic), np.ones_like(pic)) == 1.0

@@ -286,12 +286,12 @@ def _pieces(palette: np.ndarray, labels: np.ndarray, max_regions: int | None, ea
         found = [[(lab, p, box) for p, box in enumerate(boxes, 1)]
                  for lab, boxes in (pieces(labels == k, eight=True) for k in range(len(palette)))]
     _check_pieces(sum(map(len, found)), f"pieces of {len(palette)} colours", max_regions)
-    out = []
+    out, white = [], _white(palette)  # (once: a photo's palette is a colour a piece, thousands)
     for k, each in enumerate(found):
         for lab, p, box in each:
             box = _grown_box(box, BOX_MARGIN, labels.shape)
             mask = lab[box] == p
-            if k == _white(palette) and _touches_border(mask, box, labels.shape):
+            if k == white and _touches_border(mask, box, labels.shape):
                 continue  # the background: the canvas shows it
             filled = fill_holes(mask)
             out.append((int(filled.sum()), k, box, mask, filled))
