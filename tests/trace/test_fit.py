@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from im2vec_cli.trace.fit import corners, fit_ring, resample, split_segments
+from im2vec_cli.trace.fit import corners, fit_ring, fit_rings, resample, split_segments
 from im2vec_cli.vector import VectorImage, VectorShape, rasterize_svg
 
 
@@ -68,3 +68,32 @@ def test_fitting_in_blocks_gives_what_fitting_at_once_gives(monkeypatch):
     blocked = fit.fit_rings(rings, 0.5)
     for (a, fa), (b, fb) in zip(at_once, blocked):
         assert a.shape == b.shape and np.allclose(a, b, atol=1e-6) and np.array_equal(fa, fb)
+
+
+def test_rings_fitted_together_are_fitted_as_each_alone():
+    """``fit_rings`` plans every ring's runs at once (corners, sharpened corners, tangents: one
+    pass over all of them), each run bit for bit as the ring's plan alone; and each ring comes
+    out as ``fit_ring`` of it alone (to rounding: batches are padded to their longest run):
+    round rings, polygons with corners, tiny rings, a ring whose corners are its only points."""
+    import im2vec_cli.trace.fit as fit
+
+    rng = np.random.default_rng(5)
+    t = np.linspace(0, 2 * np.pi, 200, endpoint=False)
+    rings = [np.stack([40 + r * np.cos(t) + rng.normal(0, 0.3, 200), 40 + 0.6 * r * np.sin(t)], 1)
+             for r in rng.uniform(1, 30, 6)]
+    for k in range(3, 9):
+        ang = np.sort(rng.uniform(0, 2 * np.pi, k))
+        rings.append(np.stack([40 + 20 * np.cos(ang), 40 + 20 * np.sin(ang)], 1))
+    rings += [np.array([[0, 0], [1, 0], [1, 1]], float), np.array([[8, 8], [56, 8], [56, 20], [20, 20], [20, 56], [8, 56]],
+                                                                  float)]
+    for plan, ring in zip(fit._plans(rings), rings):
+        alone = fit._plans([ring])[0]
+        assert len(plan) == len(alone)
+        for run, run_alone in zip(plan, alone):
+            assert all(np.array_equal(a, b) for a, b in zip(run, run_alone))
+    together = fit_rings(rings, 0.5)
+    for ring, (c, sharp) in zip(rings, together):
+        alone, sharp_alone = fit_ring(ring, 0.5)
+        assert c.shape == alone.shape and np.allclose(c, alone, atol=1e-6) and np.array_equal(sharp, sharp_alone)
+    assert sum(f.sum() for _, f in together) > 20  # corners were found and kept
+

@@ -6,9 +6,8 @@ import scipy.ndimage as ndi
 from PIL import Image
 
 from im2vec_cli import api
-from im2vec_cli.trace.ndops import equal_pieces
+from im2vec_cli.trace.ndops import boxes, equal_pieces
 from im2vec_cli.trace.photo import edge_agreement, pieces
-from im2vec_cli.trace.regions import _boxes
 from im2vec_cli.vector import rasterize_svg
 
 
@@ -47,7 +46,7 @@ def test_a_sharp_edge_is_kept_and_shading_comes_in_fine_steps():
 
 def test_boxes_match_scipy():
     labels = np.random.default_rng(0).integers(0, 9, (23, 31))
-    assert _boxes(labels, 9) == ndi.find_objects(labels + 1)
+    assert boxes(labels, 9) == ndi.find_objects(labels + 1)
 
 
 def test_a_photo_keeps_its_edges():

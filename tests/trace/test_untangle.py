@@ -75,24 +75,51 @@ def _crosses_everywhere(contours, samples=16) -> bool:
     return bool((hit & ~neighbours).any())
 
 
-def test_crosses_agrees_with_testing_every_pair():
-    """``crosses`` (near edges at once, far blocks by their boxes) against every pair of edges, on
-    300 random contour sets: long wavy rings that fold back on themselves far along, short ones,
-    rings inside rings, touching rings; about half of them cross."""
-    rng = np.random.default_rng(7)
-    found = []
-    for trial in range(300):
+def _random_shapes(rng, count: int, spread: float = 0) -> list[list[np.ndarray]]:
+    """``count`` random sets of 1-3 contours: long wavy rings that fold back on themselves far
+    along, short ones, rings inside rings, touching rings (set ``k`` moved ``spread`` x (k mod 5)
+    px right and down)."""
+    shapes = []
+    for trial in range(count):
         contours = []
         for _ in range(rng.integers(1, 4)):
             n = int(rng.choice([3, 5, 12, 30]))
             ang = np.sort(rng.uniform(0, 2 * np.pi, n))
             r = rng.uniform(5, 30) * (1 + rng.uniform(-0.6, 0.6, n) * (trial % 3 > 0))
-            c = rng.uniform(20, 60, 2)
+            c = rng.uniform(20, 60, 2) + spread * (trial % 5)
             contours.append(_lines(np.stack([c[0] + r * np.cos(ang), c[1] + r * np.sin(ang)], 1)))
+        shapes.append(contours)
+    return shapes
+
+
+def test_crosses_agrees_with_testing_every_pair():
+    """``crosses`` (near edges at once, far blocks by their boxes) against every pair of edges, on
+    300 random contour sets: long wavy rings that fold back on themselves far along, short ones,
+    rings inside rings, touching rings; about half of them cross."""
+    found = []
+    for trial, contours in enumerate(_random_shapes(np.random.default_rng(7), 300)):
         got, want = crosses(contours), _crosses_everywhere(contours)
         assert got == want, trial
         found.append(want)
     assert 0.2 < np.mean(found) < 0.8
+
+
+def test_crosses_each_agrees_with_every_pair_by_sweep_by_grid_and_in_blocks(monkeypatch):
+    """``crosses_each`` of many shapes at once (one sweep along x over all of them) gives, for
+    each, what testing every pair of its edges gives; so does the grid that larger shapes go by
+    (``CROSS_SWEEP`` 0) and the sweep in blocks of a few pairs (``SWEEP_PAIRS`` 64)."""
+    import sys
+
+    untangle_module = sys.modules["im2vec_cli.trace.untangle"]
+    shapes = _random_shapes(np.random.default_rng(11), 120, spread=200)  # side by side and on top of each other
+    shapes.insert(7, [])  # an empty shape among them
+    want = np.array([bool(s) and _crosses_everywhere(s) for s in shapes])
+    assert 0.2 < want.mean() < 0.8
+    assert np.array_equal(untangle_module.crosses_each(shapes), want)
+    monkeypatch.setattr(untangle_module, "SWEEP_PAIRS", 64)
+    assert np.array_equal(untangle_module.crosses_each(shapes), want)
+    monkeypatch.setattr(untangle_module, "CROSS_SWEEP", 0)
+    assert np.array_equal(untangle_module.crosses_each(shapes), want)
 
 
 def test_a_shape_without_contours_crosses_nothing():

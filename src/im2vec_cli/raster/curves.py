@@ -68,9 +68,14 @@ def _weights(samples: int) -> np.ndarray:
 def flatten_ring(points: np.ndarray, samples: int) -> np.ndarray:
     """A closed cubic path ``(..., 3S, 2)`` sampled ``samples`` times a segment: the vertices
     ``(..., S * samples, 2)`` of its closed polyline (``bezier.flatten_closed`` on arrays)."""
+    return flatten_cubics(segments_of(np.asarray(points, dtype=np.float64)), samples)
+
+
+def flatten_cubics(ctrl: np.ndarray, samples: int) -> np.ndarray:
+    """Cubics ``(..., S, 4, 2)`` each sampled at ``t = i / samples``, ``i < samples``, one after
+    the other: ``(..., S * samples, 2)`` (``flatten_ring`` of a closed path's segments)."""
     if samples < 1:
         raise ValueError(f"samples must be >= 1, got {samples}")
-    ctrl = segments_of(np.asarray(points, dtype=np.float64))  # (..., S, 4, 2)
     verts = np.einsum("lk,...skc->...slc", _weights(samples), ctrl)  # (..., S, L, 2)
     return verts.reshape(*verts.shape[:-3], -1, 2)
 

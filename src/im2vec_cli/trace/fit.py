@@ -37,30 +37,11 @@ def resample(ring: np.ndarray, step: float = STEP, count: int | None = None) -> 
     return np.stack([np.interp(t, s, closed[:, 0]), np.interp(t, s, closed[:, 1])], 1)
 
 
-def _turn(pts: np.ndarray, k: int) -> np.ndarray:
-    """Turning angle (degrees) at each point of a closed ring between the chords to +-k points."""
-    a = pts - np.roll(pts, k, 0)
-    b = np.roll(pts, -k, 0) - pts
-    cos = (a * b).sum(1) / np.maximum(np.hypot(*a.T) * np.hypot(*b.T), 1e-12)
-    return np.degrees(np.arccos(np.clip(cos, -1, 1)))
-
-
 def corners(pts: np.ndarray, step: float = STEP, degrees: float = CORNER_DEG) -> np.ndarray:
-    """Indices of the corners of an evenly resampled closed ring ``(M, 2)``, ascending."""
-    n = len(pts)
-    near, far = max(1, round(NEAR / step)), max(2, round(FAR / step))
-    if n < 2 * far + 2:
-        return np.zeros(0, dtype=np.int64)
-    a_near, a_far = _turn(pts, near), _turn(pts, far)
-    cand = (a_near >= degrees) & (a_far <= CONCENTRATION * a_near)
-    out = []
-    for i in np.nonzero(cand)[0]:  # local maxima of the near turn
-        window = [(i + d) % n for d in range(-near, near + 1)]
-        if a_near[i] >= a_near[window].max() and not any((i - j) % n <= near for j in out[-1:]):
-            out.append(i)
-    if len(out) > 1 and (out[0] - out[-1]) % n <= near:
-        out.pop()
-    return np.array(sorted(out), dtype=np.int64)
+    """Indices of the corners of an evenly resampled closed ring ``(M, 2)``, ascending: a near
+    turn (over ``NEAR`` px) of at least ``degrees`` that is a local maximum and grows less than
+    ``CONCENTRATION`` times over ``FAR`` px; none on a ring shorter than ``2 FAR + 1 px``."""
+    return np.array(_Rings([pts]).corners(step, degrees)[0], dtype=np.int64)
 
 
 def sharpen(pts: np.ndarray, idx: np.ndarray, near: float = 1.0, far: float = 3.0, reach: float = 0.75,
@@ -72,33 +53,12 @@ def sharpen(pts: np.ndarray, idx: np.ndarray, near: float = 1.0, far: float = 3.
     meet at the true corner. A move of more than ``reach`` px (nearly parallel sides, or a
     feature too small for its sides to be lines) is not made.
     """
-    out = pts.copy()
-    n, k1, k2 = len(pts), max(1, round(near / step)), max(2, round(far / step))
-    for i in idx:
-        p_in, q_in = pts[(i - k2) % n], pts[(i - k1) % n]
-        p_out, q_out = pts[(i + k1) % n], pts[(i + k2) % n]
-        d_in, d_out = q_in - p_in, q_out - p_out
-        den = d_in[0] * d_out[1] - d_in[1] * d_out[0]
-        if abs(den) < 1e-9 * np.hypot(*d_in) * np.hypot(*d_out) + 1e-12:
-            continue
-        r = p_out - p_in
-        s = (r[0] * d_out[1] - r[1] * d_out[0]) / den
-        corner = p_in + s * d_in
-        if np.hypot(*(corner - pts[i])) <= reach:
-            out[i] = corner
-    return out
+    return _Rings([pts]).sharpened(np.asarray(idx, dtype=np.int64), near, far, reach, step)
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
     n = np.hypot(*v)
     return v / n if n > 1e-12 else v
-
-
-def _end_tangent(pts: np.ndarray, at_start: bool, reach: int) -> np.ndarray:
-    """Unit tangent leaving the first point (or entering the last, pointing back) of a run."""
-    seq = pts if at_start else pts[::-1]
-    k = min(reach, len(seq) - 1)
-    return _unit(seq[1 : k + 1].mean(0) - seq[0])
 
 
 def fit_cubics(pts: np.ndarray, mask: np.ndarray, u: np.ndarray, t0: np.ndarray, t1: np.ndarray, iterations: int
@@ -163,16 +123,23 @@ def fit_cubic(pts: np.ndarray, u: np.ndarray, t0: np.ndarray, t1: np.ndarray, it
     return ctrl[0], u[0]
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> float:
-    return float(a[0] * b[1] - a[1] * b[0])
-
-
-def _line_error(pts: np.ndarray) -> float:
-    p0, d = pts[0], pts[-1] - pts[0]
-    n = np.hypot(*d)
-    if n < 1e-12:
-        return float(np.hypot(*(pts - p0).T).max())
-    return float(np.abs((pts[:, 0] - p0[0]) * d[1] - (pts[:, 1] - p0[1]) * d[0]).max() / n)
+def _line_errors(runs: list[np.ndarray]) -> np.ndarray:
+    """For each run ``(N, 2)``, the largest distance of its points from the line through its
+    ends (from its first point where the ends meet): ``(R,)``."""
+    n = np.array([len(r) for r in runs])
+    first = np.cumsum(n) - n
+    pts = np.concatenate(runs)
+    p0 = pts[first]
+    d = pts[first + n - 1] - p0
+    length = np.hypot(*d.T)
+    of = np.repeat(np.arange(len(runs)), n)
+    q = pts - p0[of]
+    off = np.abs(q[:, 0] * d[of, 1] - q[:, 1] * d[of, 0])
+    far = np.maximum.reduceat(off, first) / np.where(length < 1e-12, 1, length)
+    closed = length < 1e-12
+    if closed.any():
+        far[closed] = np.maximum.reduceat(np.hypot(*q.T), first)[closed]
+    return far
 
 
 MAX_DEPTH = 24  # splits of one run, at most
@@ -188,14 +155,20 @@ def fit_runs(runs: list[tuple[np.ndarray, np.ndarray, np.ndarray]], tol: float) 
     done: list[list[tuple[tuple, np.ndarray]]] = [[] for _ in runs]
     pending = [(r, (), pts, t0, t1, 0) for r, (pts, t0, t1) in enumerate(runs)]
     while pending:
+        p0 = np.stack([p[2][0] for p in pending])
+        p3 = np.stack([p[2][-1] for p in pending])
+        t0, t1, chord = np.stack([p[3] for p in pending]), np.stack([p[4] for p in pending]), p3 - p0
+        turned = np.minimum(np.abs(t0[:, 0] * chord[:, 1] - t0[:, 1] * chord[:, 0]),
+                            np.abs(t1[:, 0] * chord[:, 1] - t1[:, 1] * chord[:, 0]))
+        depth = np.array([p[5] for p in pending])  # a straight run (a split piece only if its tangents allow it):
+        straight = (_line_errors([p[2] for p in pending]) <= tol) & ((depth == 0) | (turned <= 0.02 * np.hypot(*chord.T)))
+        lines = np.stack([p0, *line_controls(p0, p3), p3], 1)  # (P, 4, 2)
         fit = []
-        for r, key, pts, t0, t1, depth in pending:
-            chord = pts[-1] - pts[0]
-            straight = _line_error(pts) <= tol  # a straight run (a split piece only if its tangents allow it)
-            if straight and (depth == 0 or min(abs(_cross(t0, chord)), abs(_cross(t1, chord))) <= 0.02 * np.hypot(*chord)):
-                done[r].append((key, np.stack([pts[0], *line_controls(pts[0], pts[-1]), pts[-1]])))
+        for k, (r, key, pts, t0, t1, depth) in enumerate(pending):
+            if straight[k]:
+                done[r].append((key, lines[k]))
             elif len(pts) <= 3:
-                n = np.hypot(*chord) / 3
+                n = np.hypot(*(pts[-1] - pts[0])) / 3
                 done[r].append((key, np.stack([pts[0], pts[0] + n * t0, pts[-1] + n * t1, pts[-1]])))
             else:
                 fit.append((r, key, pts, t0, t1, depth))
@@ -206,7 +179,7 @@ def fit_runs(runs: list[tuple[np.ndarray, np.ndarray, np.ndarray]], tol: float) 
                 if err <= tol or depth > MAX_DEPTH:
                     done[r].append((key, ctrl))
                     continue
-                i = int(np.clip(at, 2, len(p) - 3))
+                i = min(max(at, 2), len(p) - 3)
                 tc = _unit(p[i + 2] - p[i - 2])  # the split is a smooth join
                 pending += [(r, key + (0,), p[: i + 1], t0, -tc, depth + 1), (r, key + (1,), p[i:], tc, t1, depth + 1)]
     return [[c for _, c in sorted(d, key=lambda kc: kc[0])] for d in done]
@@ -237,10 +210,12 @@ def _fit_block(fit: list[tuple]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     pts = np.zeros((len(fit), size, 2))
     mask = np.zeros((len(fit), size), dtype=bool)
     u = np.zeros((len(fit), size))
-    for j, (_, _, p, _, _, _) in enumerate(fit):
-        seg = np.hypot(*np.diff(p, axis=0).T)
-        pts[j, : len(p)], mask[j, : len(p)] = p, True
-        u[j, 1 : len(p)] = np.cumsum(seg) / max(seg.sum(), 1e-12)  # chord-length parameters
+    n = np.array([len(f[2]) for f in fit])
+    mask[:] = np.arange(size) < n[:, None]
+    pts[mask] = np.concatenate([f[2] for f in fit])
+    seg = np.where(mask[:, 1:], np.hypot(*np.moveaxis(np.diff(pts, axis=1), -1, 0)), 0)  # (R, L - 1)
+    total = [seg[j, : n[j] - 1].sum() for j in range(len(fit))]  # as a run alone sums it (pairwise)
+    u[:, 1:] = np.cumsum(seg, 1) / np.maximum(total, 1e-12)[:, None] * mask[:, 1:]  # chord-length parameters
     ctrl, u = fit_cubics(pts, mask, u, np.stack([f[3] for f in fit]), np.stack([f[4] for f in fit]), 4)
     err = np.where(mask, np.hypot(*np.moveaxis(cubics_at(ctrl, u) - pts, -1, 0)), -np.inf)  # (R, L)
     return ctrl, err.max(1), err.argmax(1)
@@ -251,23 +226,112 @@ def fit_run(pts: np.ndarray, t0: np.ndarray, t1: np.ndarray, tol: float) -> list
     return fit_runs([(pts, t0, t1)], tol)[0]
 
 
-def _runs(ring: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, bool]]:
-    """A closed ring cut at its corners: ``(points, start tangent, end tangent, starts at a
-    corner)`` per run; a ring without corners is one run from where it turns most, round."""
-    pts = resample(np.asarray(ring, dtype=np.float64))
-    cs = corners(pts)
-    n, reach = len(pts), max(2, round(1.5 / STEP))
-    if len(cs) == 0:
-        start = int(np.argmax(_turn(pts, 2)))
-        loop = np.roll(pts, -start, 0)
-        t = _unit(loop[2] - loop[-2])
-        return [(np.vstack([loop, loop[:1]]), t, -t, False)]
-    pts = sharpen(pts, cs)
-    out = []
-    for a, b in zip(cs, np.roll(cs, -1)):
-        run = pts[np.arange(a, a + ((b - a) % n or n) + 1) % n]
-        out.append((run, _end_tangent(run, True, reach), _end_tangent(run, False, reach), True))
-    return out
+class _Rings:
+    """Closed rings, resampled (``resample``), laid end to end: ``pts (N, 2)``, and per point
+    its ring (``of``), its place along it (``at``) and its ring's size (``n``) and first point
+    (``first``); ``shift(k)`` is, for every point, the index of the point ``k`` after it round its ring."""
+
+    def __init__(self, pts: list[np.ndarray]):
+        size = np.array([len(p) for p in pts], dtype=np.int64)
+        self.starts = np.cumsum(size) - size
+        self.pts = np.concatenate(pts) if pts else np.zeros((0, 2))
+        self.of = np.repeat(np.arange(len(pts)), size)
+        self.size, self.n, self.first = size, size[self.of], self.starts[self.of]
+        self.at = np.arange(len(self.pts)) - self.first
+
+    def shift(self, k: int) -> np.ndarray:
+        return self.first + (self.at + k) % self.n
+
+    def turn(self, k: int) -> np.ndarray:
+        """The turning angle (degrees) at every point between its chords to the points ``k`` before and after it."""
+        a = self.pts - self.pts[self.shift(-k)]
+        b = self.pts[self.shift(k)] - self.pts
+        cos = (a * b).sum(1) / np.maximum(np.hypot(*a.T) * np.hypot(*b.T), 1e-12)
+        return np.degrees(np.arccos(np.clip(cos, -1, 1)))
+
+    def corners(self, step: float = STEP, degrees: float = CORNER_DEG) -> list[list[int]]:
+        """``corners`` of each ring: per ring, its corners' places along it, ascending."""
+        near, far = max(1, round(NEAR / step)), max(2, round(FAR / step))
+        a_near, a_far = self.turn(near), self.turn(far)
+        peak = np.max([a_near[self.shift(d)] for d in range(-near, near + 1)], 0)  # the near turn's local maxima
+        cand = (self.n >= 2 * far + 2) & (a_near >= degrees) & (a_far <= CONCENTRATION * a_near) & (a_near >= peak)
+        out: list[list[int]] = [[] for _ in self.size]
+        idx = np.flatnonzero(cand)
+        for r, i in zip(self.of[idx].tolist(), self.at[idx].tolist()):
+            mine = out[r]
+            if not mine or i - mine[-1] > near:
+                mine.append(i)
+        for r, mine in enumerate(out):
+            if len(mine) > 1 and (mine[0] - mine[-1]) % int(self.size[r]) <= near:
+                mine.pop()
+        return out
+
+    def sharpened(self, at: np.ndarray, near: float = 1.0, far: float = 3.0, reach: float = 0.75,
+                  step: float = STEP) -> np.ndarray:
+        """``sharpen`` of every ring at the points ``at`` (indices into ``pts``): the points, moved."""
+        out, pts = self.pts.copy(), self.pts
+        k1, k2 = max(1, round(near / step)), max(2, round(far / step))
+        p_in, q_in = pts[self.shift(-k2)[at]], pts[self.shift(-k1)[at]]
+        p_out, q_out = pts[self.shift(k1)[at]], pts[self.shift(k2)[at]]
+        d_in, d_out = q_in - p_in, q_out - p_out
+        den = d_in[:, 0] * d_out[:, 1] - d_in[:, 1] * d_out[:, 0]
+        ok = ~(np.abs(den) < 1e-9 * np.hypot(*d_in.T) * np.hypot(*d_out.T) + 1e-12)
+        r = p_out - p_in
+        s = (r[:, 0] * d_out[:, 1] - r[:, 1] * d_out[:, 0]) / np.where(ok, den, 1)
+        corner = p_in + s[:, None] * d_in
+        ok &= np.hypot(*(corner - pts[at]).T) <= reach
+        out[at[ok]] = corner[ok]
+        return out
+
+
+def _plans(rings: list[np.ndarray]) -> list[list[tuple[np.ndarray, np.ndarray, np.ndarray, bool]]]:
+    """Each closed ring cut at its corners: per ring, ``(points, start tangent, end tangent,
+    starts at a corner)`` per run; a ring without corners is one run from where it turns most,
+    round. All rings at once (``_Rings``), each as a ring alone would be."""
+    rs = _Rings([resample(np.asarray(r, dtype=np.float64)) for r in rings])
+    found = rs.corners()
+    at = np.array([int(rs.starts[r]) + i for r, cs in enumerate(found) for i in cs], dtype=np.int64)
+    runs = iter(_cut(rs, found, rs.sharpened(at)))
+    turn2 = rs.turn(2) if any(not cs for cs in found) else None
+    plans = []
+    for r, cs in enumerate(found):
+        if cs:
+            plans.append([next(runs) for _ in cs])
+            continue
+        first, n = int(rs.starts[r]), int(rs.size[r])
+        start = int(np.argmax(turn2[first : first + n]))
+        loop = rs.pts[first + (start + np.arange(n + 1)) % n]
+        t = _unit(loop[2] - loop[-3])
+        plans.append([(loop, t, -t, False)])
+    return plans
+
+
+def _cut(rs: _Rings, found: list[list[int]], pts: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, bool]]:
+    """The runs between consecutive corners ``found`` of the rings of ``rs`` (their points
+    ``pts``, sharpened), ring after ring: ``(points, start tangent, end tangent, True)``, each
+    tangent the direction from the end to the mean of the (at most) 1.5 px of points beside it."""
+    ring = np.array([r for r, cs in enumerate(found) for _ in cs], dtype=np.int64)
+    a = np.array([i for cs in found for i in cs], dtype=np.int64)
+    b = np.array([i for cs in found for i in cs[1:] + cs[:1]], dtype=np.int64)
+    if not len(a):
+        return []
+    n, first = rs.size[ring], rs.starts[ring]
+    length = (b - a) % n
+    length = np.where(length == 0, n, length) + 1  # points a run, both corners included
+    where = np.cumsum(length) - length
+    step = np.arange(length.sum()) - np.repeat(where, length)
+    idx = np.repeat(first, length) + (np.repeat(a, length) + step) % np.repeat(n, length)
+    reach = np.minimum(max(2, round(1.5 / STEP)), length - 1)
+    tangents = []
+    for end, sign in ((where, 1), (where + length - 1, -1)):  # the start's points after it, the end's before it
+        total = pts[idx[end + sign]]
+        for k in range(2, int(reach.max()) + 1):
+            total = np.where((reach >= k)[:, None], total + pts[idx[np.where(reach >= k, end + sign * k, end)]], total)
+        v = total / reach[:, None] - pts[idx[end]]
+        norm = np.hypot(*v.T)
+        tangents.append(np.where((norm > 1e-12)[:, None], v / np.where(norm > 1e-12, norm, 1)[:, None], v))
+    parts = np.split(pts[idx], np.cumsum(length)[:-1])
+    return [(p, t0, t1, True) for p, t0, t1 in zip(parts, *tangents)]
 
 
 def fit_rings(rings: list[np.ndarray], tol: float) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -278,7 +342,7 @@ def fit_rings(rings: list[np.ndarray], tol: float) -> list[tuple[np.ndarray, np.
         Per ring, ``(3S, 2)`` control points (same orientation as the ring) and ``(S,)`` bool,
         true where anchor ``i`` is a corner (a join whose tangents may differ).
     """
-    plans = [_runs(r) for r in rings]
+    plans = _plans(rings)
     pieces = iter(fit_runs([(p, t0, t1) for plan in plans for p, t0, t1, _ in plan], tol))
     out = []
     for plan in plans:

@@ -285,3 +285,18 @@ def lab2rgb(lab: np.ndarray) -> np.ndarray:
     lin = xyz @ _XYZ_RGB.T
     rgb = np.where(lin > 0.0031308, 1.055 * np.power(np.maximum(lin, 0), 1 / 2.4) - 0.055, 12.92 * lin)
     return np.clip(rgb, 0, 1)
+
+
+def boxes(labels: np.ndarray, n: int) -> list[tuple[slice, slice]]:
+    """The box of each label ``0..n-1`` of ``labels (H, W)`` (each present), as
+    ``scipy.ndimage.find_objects(labels + 1)`` gives them."""
+    h, w = labels.shape
+    flat = labels.ravel()
+    rows, cols = np.divmod(np.arange(h * w), w)
+    lo_y, lo_x, hi_y, hi_x = np.full(n, h), np.full(n, w), np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64)
+    np.minimum.at(lo_y, flat, rows)
+    np.minimum.at(lo_x, flat, cols)
+    np.maximum.at(hi_y, flat, rows)
+    np.maximum.at(hi_x, flat, cols)
+    return [(slice(a, b + 1), slice(c, d + 1)) for a, b, c, d in zip(lo_y.tolist(), hi_y.tolist(), lo_x.tolist(),
+                                                                       hi_x.tolist())]
