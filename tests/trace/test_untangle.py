@@ -104,10 +104,10 @@ def test_crosses_agrees_with_testing_every_pair():
     assert 0.2 < np.mean(found) < 0.8
 
 
-def test_crosses_each_agrees_with_every_pair_by_sweep_by_grid_and_in_blocks(monkeypatch):
-    """``crosses_each`` of many shapes at once (one sweep along x over all of them) gives, for
-    each, what testing every pair of its edges gives; so does the grid that larger shapes go by
-    (``CROSS_SWEEP`` 0) and the sweep in blocks of a few pairs (``SWEEP_PAIRS`` 64)."""
+def test_crosses_each_agrees_with_every_pair_in_any_bands_and_blocks(monkeypatch):
+    """``crosses_each`` of many shapes at once (one sweep along x within bands of every shape)
+    gives, for each, what testing every pair of its edges gives, whatever the bands' height
+    (``SWEEP_BAND`` 1 px, 8, 1000: one band) and in blocks of a few pairs (``SWEEP_PAIRS`` 64)."""
     import sys
 
     untangle_module = sys.modules["im2vec_cli.trace.untangle"]
@@ -115,11 +115,10 @@ def test_crosses_each_agrees_with_every_pair_by_sweep_by_grid_and_in_blocks(monk
     shapes.insert(7, [])  # an empty shape among them
     want = np.array([bool(s) and _crosses_everywhere(s) for s in shapes])
     assert 0.2 < want.mean() < 0.8
-    assert np.array_equal(untangle_module.crosses_each(shapes), want)
-    monkeypatch.setattr(untangle_module, "SWEEP_PAIRS", 64)
-    assert np.array_equal(untangle_module.crosses_each(shapes), want)
-    monkeypatch.setattr(untangle_module, "CROSS_SWEEP", 0)
-    assert np.array_equal(untangle_module.crosses_each(shapes), want)
+    for band, pairs in ((8, 1 << 22), (1, 1 << 22), (1000, 1 << 22), (8, 64)):
+        monkeypatch.setattr(untangle_module, "SWEEP_BAND", band)
+        monkeypatch.setattr(untangle_module, "SWEEP_PAIRS", pairs)
+        assert np.array_equal(untangle_module.crosses_each(shapes), want), (band, pairs)
 
 
 def test_a_shape_without_contours_crosses_nothing():

@@ -142,14 +142,19 @@ def agrees_better(picture: np.ndarray, min_px: int, seed: int = 0) -> tuple[bool
     itself cut into a photo's ``pieces`` (as ``read.read`` cuts a photo) than quantised to its
     palette (``palette.quantize``, as a logo is): each drawn as a raster of its labels' colours,
     the pieces' edges agree by at least ``AGREE_MARGIN`` more (``edge_agreement``) and their
-    pixel error is no larger. With the two agreements, for ``-v``."""
+    pixel error is no larger (never where the palette's agree within the margin of 1: the
+    pieces are not cut). With the agreements worked out, for ``-v``."""
     from .ndops import gaussian
     from .palette import quantize
 
     palette, labels = quantize(picture, None, seed)
+    logo = palette[labels]
+    edges = {"logo_edges": edge_agreement(picture, logo)}
+    if edges["logo_edges"] + AGREE_MARGIN > 1:  # no cut can agree by the margin more (a flat logo): not cut
+        return False, {k: round(v, 3) for k, v in edges.items()}
     colours, ids = pieces(gaussian(picture, PHOTO_SIGMA), min_px)
-    logo, photo = palette[labels], colours[ids]
-    edges = {"logo_edges": edge_agreement(picture, logo), "photo_edges": edge_agreement(picture, photo)}
+    photo = colours[ids]
+    edges["photo_edges"] = edge_agreement(picture, photo)
     better = edges["photo_edges"] >= edges["logo_edges"] + AGREE_MARGIN and (
         ((photo - picture) ** 2).mean() <= ((logo - picture) ** 2).mean())
     return bool(better), {k: round(v, 3) for k, v in edges.items()}

@@ -50,13 +50,8 @@ def _outline(sh: VectorShape, snap: float = 1 / 256) -> list[np.ndarray] | None:
     return None
 
 
-CROSS_BLOCK = 64  # edges tested at once by ``crosses``, against the edges in their box: a few cubics' box, which
-# few other edges enter (512: a glyph's box, and 2 s for a 2048 px page of text instead of 0.3 s)
-CROSS_CELL = 32  # px: the grid that finds the edges in a block's box; an edge in more than WIDE_CELLS cells is
-WIDE_CELLS = 64  # tested against every block (a page's frame, a long rule: few)
-CROSS_SWEEP = 2048  # a shape of at most this many edges is tested by a sweep along x (``crosses_each``): the pairs
-# whose x spans meet, a few per edge (every pair of a photo's 160-edge piece: 0.35 ms a piece; a page of text,
-# thousands of edges in one x span, goes by the grid)
+SWEEP_BAND = 8  # px: edges are swept along x within bands of this height (an edge in each band it enters), so that
+# a page of text, thousands of edges in one x span, pairs each edge with the few beside it in its line
 SWEEP_PAIRS = 1 << 22  # pairs tested at once by the sweep: bounded memory
 
 
@@ -67,16 +62,8 @@ def crosses(contours: list[np.ndarray], samples: int = 16) -> bool:
 
 
 def crosses_each(shapes: list[list[np.ndarray]], samples: int = 16) -> np.ndarray:
-    """``crosses`` of each shape's contours: ``(N,)`` bool. Shapes of at most ``CROSS_SWEEP``
-    edges are tested together by one sweep (``_swept``), larger ones each by its grid (``_gridded``)."""
-    edges = _Edges(shapes, samples)
-    out = np.zeros(len(shapes), dtype=bool)
-    per_shape = np.bincount(edges.shape, minlength=len(shapes))
-    small = per_shape <= CROSS_SWEEP
-    out[small] = _swept(edges, small)[small]
-    for k in np.flatnonzero(~small):
-        out[k] = _gridded(edges, k)
-    return out
+    """``crosses`` of each shape's contours: ``(N,)`` bool, all shapes at once (``_swept``)."""
+    return _swept(_Edges(shapes, samples), len(shapes))
 
 
 class _Edges:
@@ -127,99 +114,37 @@ def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
 
 
-def _swept(edges: _Edges, which: np.ndarray) -> np.ndarray:
-    """Whether each shape ``which`` (``(N,)`` bool) crosses itself, all at once: the edges sorted
-    by shape, then by the left of their box; each pairs with those after it whose left lies
-    within its box's x span (any two edges whose boxes meet pair so, the leftmost with the
-    other); the pairs whose boxes meet in y too are tested. ``(N,)`` bool."""
-    out = np.zeros(len(which), dtype=bool)
-    keep = np.flatnonzero(which[edges.shape])
-    if not len(keep):
+def _swept(edges: _Edges, count: int) -> np.ndarray:
+    """Whether each of ``count`` shapes crosses itself: each edge filed in the ``SWEEP_BAND`` px
+    bands its box enters; within a band of a shape, the edges sorted by the left of their box,
+    each paired with those after it whose left lies within its x span (any two edges whose
+    boxes meet share a band and pair so, the leftmost with the other); the pairs whose boxes
+    meet in y too are tested (``_Edges.hit``). ``(count,)`` bool."""
+    out = np.zeros(count, dtype=bool)
+    if not len(edges.a):
         return out
-    lo, hi, shape = edges.lo[keep], edges.hi[keep], edges.shape[keep]
-    x0 = lo[:, 0].min()
-    span = float(hi[:, 0].max() - x0) + 2  # shapes' keys apart by more than any x
-    key = shape * span + (lo[:, 0] - x0)
+    y0 = edges.lo[:, 1].min()
+    b0 = np.floor((edges.lo[:, 1] - y0) / SWEEP_BAND).astype(np.int64)
+    n = np.floor((edges.hi[:, 1] - y0) / SWEEP_BAND).astype(np.int64) - b0 + 1
+    edge = np.repeat(np.arange(len(edges.a)), n)  # one row per (edge, band)
+    band = np.repeat(b0, n) + np.arange(len(edge)) - np.repeat(np.cumsum(n) - n, n)
+    group = np.unique(edges.shape[edge] * (int(band.max()) + 1) + band, return_inverse=True)[1]
+    x0 = edges.lo[:, 0].min()
+    span = float(edges.hi[:, 0].max() - x0) + 2  # groups' keys apart by more than any x
+    key = group * span + (edges.lo[edge, 0] - x0)
     order = np.argsort(key, kind="stable")
-    stop = np.searchsorted(key[order], (shape * span + (hi[:, 0] - x0))[order] + 1e-6, "right")
-    count = stop - np.arange(len(order)) - 1  # edges after each (in order) whose left is within its span
-    ends = np.cumsum(count)
+    edge = edge[order]
+    stop = np.searchsorted(key[order], group[order] * span + (edges.hi[edge, 0] - x0) + 1e-3, "right")
+    after = stop - np.arange(len(order)) - 1  # rows after each (in order) whose left is within its x span
+    ends = np.cumsum(after)
     start = 0
     while start < len(order):  # blocks of at most SWEEP_PAIRS pairs
-        stop_at = max(int(np.searchsorted(ends, ends[start] - count[start] + SWEEP_PAIRS, "right")), start + 1)
-        c = count[start:stop_at]
+        stop_at = max(int(np.searchsorted(ends, ends[start] - after[start] + SWEEP_PAIRS, "right")), start + 1)
+        c = after[start:stop_at]
         first = np.repeat(np.arange(start, stop_at), c)
-        second = first + 1 + np.arange(c.sum()) - np.repeat(np.cumsum(c) - c, c)
-        i, j = keep[order[first]], keep[order[second]]
+        i, j = edge[first], edge[first + 1 + np.arange(c.sum()) - np.repeat(np.cumsum(c) - c, c)]
         meet = (edges.lo[j] <= edges.hi[i]).all(1) & (edges.lo[i] <= edges.hi[j]).all(1)
         i, j = i[meet], j[meet]
         out[edges.shape[i[edges.hit(i, j)]]] = True
         start = stop_at
     return out
-
-
-def _gridded(edges: _Edges, k: int) -> bool:
-    """Whether shape ``k`` crosses itself: runs of its edges (``_blocks``) each tested against the
-    edges in their box, found by a grid (``_EdgeGrid``)."""
-    mine = np.flatnonzero(edges.shape == k)
-    lo_xy, hi_xy = edges.lo[mine], edges.hi[mine]
-    grid = _EdgeGrid(lo_xy, hi_xy)
-    sizes = np.bincount(edges.owner[mine] - edges.owner[mine].min())
-    for blk in _blocks([int(n) for n in sizes if n], lo_xy, hi_xy):  # neighbours along a contour: a small box
-        box_lo, box_hi = lo_xy[blk].min(0), hi_xy[blk].max(0)
-        maybe = grid.within(box_lo, box_hi)
-        maybe = maybe[((lo_xy[maybe] <= box_hi) & (hi_xy[maybe] >= box_lo)).all(1)]  # edges j in that box
-        if edges.hit(mine[blk][:, None], mine[maybe][None]).any():  # (B, J) pairs
-            return True
-    return False
-
-
-def _blocks(sizes: list[int], lo_xy: np.ndarray, hi_xy: np.ndarray) -> list[slice]:
-    """Runs of at most ``CROSS_BLOCK`` edges along one contour, consecutive small contours put
-    together while their box stays within a ``CROSS_CELL`` px square (a block across two far
-    apart contours would have a page-sized box)."""
-    out, start = [], 0
-    for n in sizes:
-        for lo in range(start, start + n, CROSS_BLOCK):
-            hi = min(lo + CROSS_BLOCK, start + n)
-            if out and out[-1].stop == lo and hi - out[-1].start <= CROSS_BLOCK:
-                j = slice(out[-1].start, hi)
-                if (hi_xy[j].max(0) - lo_xy[j].min(0)).max() <= CROSS_CELL:
-                    out[-1] = j
-                    continue
-            out.append(slice(lo, hi))
-        start += n
-    return out
-
-
-class _EdgeGrid:
-    """Edge boxes ``(E, 2)`` filed by the ``CROSS_CELL`` px grid cells they enter, to find every
-    edge whose box may meet a given box (a superset: the caller tests the boxes)."""
-
-    def __init__(self, lo_xy: np.ndarray, hi_xy: np.ndarray):
-        self.origin = lo_xy.min(0)
-        c0, c1 = self._cell(lo_xy), self._cell(hi_xy)
-        self.columns = int(c1[:, 0].max()) + 1
-        span = c1 - c0 + 1
-        count = span[:, 0] * span[:, 1]
-        wide = count > WIDE_CELLS
-        self.wide = np.flatnonzero(wide)
-        edge = np.repeat(np.flatnonzero(~wide), count[~wide])  # one row per (edge, cell)
-        first = np.repeat(np.cumsum(count[~wide]) - count[~wide], count[~wide])
-        k = np.arange(len(edge)) - first  # the k-th cell of its edge's box, row by row
-        w = span[edge, 0]
-        cell = (c0[edge, 1] + k // w) * self.columns + c0[edge, 0] + k % w
-        order = np.argsort(cell, kind="stable")
-        self.cell, self.edge = cell[order], edge[order]
-
-    def _cell(self, xy: np.ndarray) -> np.ndarray:
-        return np.floor((xy - self.origin) / CROSS_CELL).astype(np.int64)
-
-    def within(self, box_lo: np.ndarray, box_hi: np.ndarray) -> np.ndarray:
-        (x0, y0), (x1, y1) = self._cell(box_lo[None])[0], self._cell(box_hi[None])[0]
-        x1 = min(x1, self.columns - 1)
-        rows = np.arange(max(y0, 0), y1 + 1) * self.columns
-        starts = np.searchsorted(self.cell, rows + max(x0, 0), "left")
-        ends = np.searchsorted(self.cell, rows + x1, "right")
-        parts = [self.edge[s:e] for s, e in zip(starts, ends)] + [self.wide]
-        return np.unique(np.concatenate(parts))
