@@ -130,10 +130,12 @@ def color_share(picture: np.ndarray, k: int) -> float:
 def grey_share(picture: np.ndarray, k: int = 16) -> float:
     """For a grey picture (all its pixels grey within ``GREY_SPREAD``), the share of its pixels
     that its ``k`` commonest 8-bit grey levels cover; 1 for a picture in colour."""
+    from .ndops import mean3, spread3
+
     sample = picture[:: max(1, picture.shape[0] // 256), :: max(1, picture.shape[1] // 256)]
-    if (np.ptp(sample, axis=-1) > GREY_SPREAD).any():
+    if (spread3(sample) > GREY_SPREAD).any():
         return 1.0
-    counts = np.bincount((sample.mean(-1) * 255.999).astype(np.int64).ravel(), minlength=256)
+    counts = np.bincount((mean3(sample) * 255.999).astype(np.int64).ravel(), minlength=256)
     return float(np.sort(counts)[::-1][:k].sum() / counts.sum())
 
 

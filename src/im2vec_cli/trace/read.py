@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..options import PRESETS
-from .ndops import gaussian, norm3
+from .ndops import gaussian, mean3, norm3, spread3
 from .palette import MAX_HARD_COLORS, hard_palette
 from .photo import AGREE_PIXELS, PHOTO_SIGMA, agrees_better, looks_like_a_photo
 from .regions import background_color, two_tone
@@ -110,7 +110,7 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
         flat, light = flattened(picture)
         figures["light"] = round(light, 3)
         if preset is not None or noise > NOISE or light > UNEVEN:
-            lum = smoothed(flat.mean(-1), noise)
+            lum = smoothed(mean3(flat), noise)
             ink, alpha = ink_coverage(flat, lum)
             if preset is not None or (_is_two_tone(flat, ink) and shaded_share(alpha) <= SHADED):
                 # read at the darkest ink, where thin strokes keep their weight (not needed for a forced scan)
@@ -164,11 +164,11 @@ def subpixel_grey(picture: np.ndarray) -> np.ndarray | None:
     else ``None`` (a colour picture: colour in its flat areas too)."""
     if max(picture.shape[:2]) <= PIXEL_SIDE:  # a small icon is all edges: its colours are its own
         return None
-    chroma = np.ptp(picture, axis=-1)
+    chroma = spread3(picture)
     colourful = chroma > FRINGE_CHROMA
     if not colourful.any():
         return None
-    lum = picture.mean(-1)
+    lum = mean3(picture)
     p = np.pad(lum, ((0, 0), (2, 2)), mode="edge")
     across = np.maximum(np.abs(p[:, 3:-1] - p[:, 1:-3]), np.abs(p[:, 4:] - p[:, :-4]))  # within 2 px along the row
     if (across[colourful] > FRINGE_STEP).mean() < FRINGE_EDGE:
@@ -212,7 +212,7 @@ def background_spread(picture: np.ndarray, alpha: np.ndarray) -> float:
     shaded paper, all on the paper-ink line, spreads by a tenth or more where it is brighter
     than its commonest shade at the border (coverage clipped to 0)."""
     step = max(1, max(alpha.shape) // 256)
-    lum = picture[::step, ::step].mean(-1)[alpha[::step, ::step] <= 0.01]
+    lum = mean3(picture[::step, ::step])[alpha[::step, ::step] <= 0.01]
     if len(lum) < 16:
         return 0.0
     lo, hi = np.percentile(lum, [2.5, 97.5])
@@ -250,7 +250,7 @@ def noise_sigma(picture: np.ndarray) -> float:
 
     h, w, _ = picture.shape
     y0, x0 = (h - min(h, 512)) // 2, (w - min(w, 512)) // 2
-    gray = picture[y0 : y0 + 512, x0 : x0 + 512].mean(-1)
+    gray = mean3(picture[y0 : y0 + 512, x0 : x0 + 512])
     mask = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], dtype=np.float64)
     r = convolve(gray, mask)[1:-1, 1:-1]
     return float(1.4826 * np.median(np.abs(r)) / 6 * np.sqrt(3))  # grey is the mean of 3 channels
@@ -273,7 +273,7 @@ def flattened(picture: np.ndarray) -> tuple[np.ndarray, float]:
     ys, xs = (np.arange(sh) + 0.5) * step / h, (np.arange(sw) + 0.5) * step / w
     basis = _basis(np.tile(xs, sh), np.repeat(ys, sw))  # (N, B)
     flat_small = small.reshape(-1, 3)
-    lum = flat_small.mean(-1)
+    lum = mean3(flat_small)
     paper, coef = lum > threshold_otsu(lum), None
     for _ in range(3):
         if paper.sum() < basis.shape[1] * 4:
@@ -281,12 +281,12 @@ def flattened(picture: np.ndarray) -> tuple[np.ndarray, float]:
         a = basis[paper]  # least squares by the normal equations: B x B, B = 10
         coef = np.linalg.solve(a.T @ a + 1e-9 * np.eye(a.shape[1]), a.T @ flat_small[paper])  # (B, 3)
         light = np.clip(basis @ coef, 0.05, None)  # (N, 3)
-        flat_lum = (flat_small / light).mean(-1)
+        flat_lum = mean3(flat_small / light)
         paper = flat_lum > threshold_otsu(flat_lum)
     if coef is None:
         return picture, 0.0  # too little paper to fit its light: as it is
     full = _surface(coef, (np.arange(w) + 0.5) / w, (np.arange(h) + 0.5) / h)  # (H, W, 3)
-    spread = float(light.mean(-1).max() - light.mean(-1).min())
+    spread = float(mean3(light).max() - mean3(light).min())
     return np.clip(picture / np.clip(full, 0.05, None), 0, 1), spread
 
 
@@ -335,7 +335,7 @@ def ink_coverage(picture: np.ndarray, lum: np.ndarray, sharp: bool = False) -> t
     if sharp:  # the ink's level before smoothing thinned the strokes: the darkest of the dark side
         from .ndops import median3
 
-        dark = median3(picture.mean(-1))[:: step[0], :: step[1]]
+        dark = median3(mean3(picture))[:: step[0], :: step[1]]
         dark = dark[dark <= t]
     ink_l = float(np.percentile(dark, INK_PERCENTILE if sharp else 50)) if len(dark) else 0.0
     paper_l = float(np.median(light)) if len(light) else 1.0
@@ -352,7 +352,7 @@ def _is_two_tone(flat: np.ndarray, ink: np.ndarray) -> bool:
     if ink.mean() > 0.75:
         return False
     sample = flat[::2, ::2]
-    _, alpha = ink_coverage(sample, sample.mean(-1))
+    _, alpha = ink_coverage(sample, mean3(sample))
     off = norm3(sample - (1 - alpha[..., None] * (1 - ink)))
     return bool((off > OFF_LINE).mean() < OFF_SHARE)
 
