@@ -233,8 +233,10 @@ def kmeans(data: np.ndarray, k: int, rng: np.random.Generator, iterations: int =
         centres[i] = data[j]
     labels = np.zeros(len(data), dtype=np.int32)
     cols = [np.ascontiguousarray(data[:, j]) for j in range(data.shape[1])]
-    for _ in range(iterations):
-        labels = nearest(rows, centres)[back]
+    for it in range(iterations):
+        last, labels = labels, nearest(rows, centres)[back]
+        if it and np.array_equal(labels, last):  # the same labels give the same centres: settled
+            break
         counts = np.bincount(labels, minlength=k)
         sums = np.stack([np.bincount(labels, weights=c, minlength=k) for c in cols], 1)  # summed in data order
         centres = np.where((counts > 0)[:, None], sums / np.maximum(counts, 1)[:, None], centres)

@@ -103,8 +103,9 @@ def _quantize(image: np.ndarray, colors: int | None, seed: int = 0, max_colors: 
     rng = np.random.default_rng(seed)
     if len(pool) > 20000:
         pool = pool[rng.choice(len(pool), 20000, replace=False)]
-    unique = np.unique(np.round(pool * 255), axis=0)
-    ks = [min(colors, len(unique))] if colors else range(1, min(max_colors, len(unique)) + 1)
+    q = np.round(pool * 255).astype(np.int64)  # distinct 8-bit colours: packed, as np.unique(axis=0) counts them
+    unique = len(np.unique((q[:, 0] << 16) | (q[:, 1] << 8) | q[:, 2]))
+    ks = [min(colors, unique)] if colors else range(1, min(max_colors, unique) + 1)
     for k in ks:
         centres, lab = kmeans(pool, k, rng, 20)
         used = np.unique(lab)
