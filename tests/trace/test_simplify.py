@@ -85,3 +85,24 @@ def test_fit_merges_is_fit_merge_row_by_row_to_the_bit():
     for (ctrl, err), pair in zip(fit_merges(pairs), pairs):
         want_ctrl, want_err = fit_merge(*pair)
         assert np.array_equal(ctrl, want_ctrl) and (err == want_err or np.isinf(err) and np.isinf(want_err))
+
+
+def test_contours_simplified_together_come_out_as_each_alone():
+    """``simplify_contours`` merges every contour's segments in step, fitting each round's
+    merges of all of them together; each contour comes out bit for bit as it does alone
+    (``simplify_contour``): circles finely split, a square of collinear thirds, a wavy ring
+    that keeps some of its segments, a contour already at ``min_segments``."""
+    from im2vec_cli.trace.simplify import simplify_contours
+
+    rng = np.random.default_rng(3)
+    contours = [circle(32, 32, r, segments=n).numpy() for r, n in ((20, 16), (6, 9), (30, 24))]
+    side = [np.array(p, float) for p in ((8, 8), (20, 8), (32, 8), (44, 8), (44, 20), (44, 32), (44, 44), (32, 44),
+                                         (20, 44), (8, 44), (8, 32), (8, 20))]
+    contours.append(np.concatenate([np.stack([a, *line_controls(a, b)]) for a, b in zip(side, side[1:] + side[:1])]))
+    wavy = circle(32, 32, 18, segments=20).numpy()
+    contours.append(wavy + rng.normal(0, 0.4, wavy.shape))
+    contours.append(circle(10, 10, 5, segments=2).numpy())
+    together = simplify_contours(contours, 0.1)
+    assert [len(c) for c in together] != [len(c) for c in contours]  # merges were made
+    for c, t in zip(contours, together):
+        assert np.array_equal(t, simplify_contour(c, 0.1))

@@ -88,37 +88,53 @@ def simplify_contour(points: np.ndarray, tol: float, min_segments: int = 2) -> n
     Returns:
         ``(3S', 2)`` with ``min_segments <= S' <= S``, starting at one of the original anchors.
     """
+    return simplify_contours([points], tol, min_segments)[0]
+
+
+def simplify_contours(contours: list[np.ndarray], tol: float, min_segments: int = 2) -> list[np.ndarray]:
+    """``simplify_contour`` of each contour, all of them in step: every round, each contour's
+    merges not yet fitted are fitted together (``fit_merges``), then each contour makes its
+    cheapest merge (or stops, none within ``tol``); each comes out as it does alone."""
     t = np.linspace(0, 1, SAMPLES, endpoint=False)
-    # (uid, control points (4, 2), samples of the original outline it stands for (M, 2), end excluded)
-    segs = [(i, c, _bezier(c, t)) for i, c in enumerate(_segments(np.asarray(points, dtype=np.float64)))]
-    uid = len(segs)
-    costs: dict[tuple[int, int], tuple[np.ndarray, float]] = {}  # merge of two neighbours by uid
-    if len(segs) > min_segments:  # every first merge at once
-        nxt = segs[1:] + segs[:1]
-        keys = [(ua, ub) for (ua, _, _), (ub, _, _) in zip(segs, nxt)]
-        costs.update(zip(keys, fit_merges([(a, b, np.concatenate([sa, sb, b[3:4]]))
-                                           for (_, a, sa), (_, b, sb) in zip(segs, nxt)])))
-    while len(segs) > min_segments:
-        n = len(segs)
-        best_i, best = -1, (None, np.inf)
-        for i in range(n):
-            (ua, a, sa), (ub, b, sb) = segs[i], segs[(i + 1) % n]
-            if (ua, ub) not in costs:
-                costs[(ua, ub)] = fit_merge(a, b, np.concatenate([sa, sb, b[3:4]]))
-            if costs[(ua, ub)][1] < best[1]:
-                best_i, best = i, costs[(ua, ub)]
-        if best[1] > tol:
-            break
-        j = (best_i + 1) % n
-        segs[best_i] = (uid, best[0], np.concatenate([segs[best_i][2], segs[j][2]]))
-        uid += 1
-        del segs[j]
-    return np.concatenate([c[:3] for _, c, _ in segs])
+    # per contour: [(uid, control points (4, 2), samples of the original outline it stands for (M, 2), end excluded)]
+    every = [[(i, c, _bezier(c, t)) for i, c in enumerate(_segments(np.asarray(p, dtype=np.float64)))]
+             for p in contours]
+    uid = [len(segs) for segs in every]
+    costs: list[dict[tuple[int, int], tuple[np.ndarray, float]]] = [{} for _ in every]  # merges of neighbours by uid
+    active = [k for k, segs in enumerate(every) if len(segs) > min_segments]
+    while active:
+        todo = []  # (contour, key, first, second, the original outline from first's start to second's end)
+        for k in active:
+            segs = every[k]
+            for (ua, a, sa), (ub, b, sb) in zip(segs, segs[1:] + segs[:1]):
+                if (ua, ub) not in costs[k]:
+                    todo.append((k, (ua, ub), a, b, np.concatenate([sa, sb, b[3:4]])))
+        for (k, key, *_), got in zip(todo, fit_merges([w[2:] for w in todo])):
+            costs[k][key] = got
+        still = []
+        for k in active:
+            segs, n = every[k], len(every[k])
+            best_i, best = -1, (None, np.inf)
+            for i in range(n):
+                cost = costs[k][(segs[i][0], segs[(i + 1) % n][0])]
+                if cost[1] < best[1]:
+                    best_i, best = i, cost
+            if best[1] > tol:
+                continue
+            j = (best_i + 1) % n
+            segs[best_i] = (uid[k], best[0], np.concatenate([segs[best_i][2], segs[j][2]]))
+            uid[k] += 1
+            del segs[j]
+            if len(segs) > min_segments:
+                still.append(k)
+        active = still
+    return [np.concatenate([c[:3] for _, c, _ in segs]) for segs in every]
 
 
 def simplify(image: VectorImage, tol: float) -> VectorImage:
     """``simplify_contour`` on every contour of ``image`` (``tol`` in its pixel frame)."""
     if tol <= 0:
         return image
-    shapes = [dataclasses.replace(s, contours=[simplify_contour(c, tol) for c in s.contours]) for s in image.shapes]
+    done = iter(simplify_contours([c for s in image.shapes for c in s.contours], tol))
+    shapes = [dataclasses.replace(s, contours=[next(done) for _ in s.contours]) for s in image.shapes]
     return dataclasses.replace(image, shapes=shapes)

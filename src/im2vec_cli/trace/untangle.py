@@ -11,7 +11,7 @@ import numpy as np
 
 from ..raster.curves import flatten_cubics
 from ..vector import VectorImage, VectorShape, skia
-from .simplify import simplify_contour
+from .simplify import simplify_contours
 
 
 def untangle(vec: VectorImage, merge_tol: float = 0.25) -> VectorImage:
@@ -21,17 +21,16 @@ def untangle(vec: VectorImage, merge_tol: float = 0.25) -> VectorImage:
     the segments path ops split are merged again within ``merge_tol`` px where that crosses
     nothing. Shapes without crossings are kept as they are, and so is a shape that Skia's path
     ops fail on (rare: nearly coincident curves), with its coordinates snapped and without."""
-    shapes = []
-    for sh, tangled in zip(vec.shapes, crosses_each([sh.contours for sh in vec.shapes])):
-        if not tangled:  # keep our cubics and start points
-            shapes.append(sh)
-            continue
-        clean = _outline(sh)
-        if clean is None:  # Skia could not resolve it: keep the shape (its loop is a fraction of a pixel)
-            shapes.append(sh)
-            continue
-        merged = [simplify_contour(c, merge_tol) if len(c) >= 9 else c for c in clean]  # path ops split curves
-        shapes.append(VectorShape(clean if crosses(merged) else merged, sh.color, "nonzero"))
+    tangled = crosses_each([sh.contours for sh in vec.shapes])
+    clean = {k: _outline(vec.shapes[k]) for k in np.flatnonzero(tangled).tolist()}  # None: Skia could not resolve it (its
+    clean = {k: c for k, c in clean.items() if c is not None}  # loop is a fraction of a pixel): the shape is kept
+    long = [(k, i) for k, cs in clean.items() for i, c in enumerate(cs) if len(c) >= 9]  # path ops split curves:
+    merged = {k: list(cs) for k, cs in clean.items()}  # merged again, all shapes' contours at once
+    for (k, i), c in zip(long, simplify_contours([clean[k][i] for k, i in long], merge_tol)):
+        merged[k][i] = c
+    again = dict(zip(merged, crosses_each(list(merged.values()))))
+    shapes = [VectorShape(clean[k] if again[k] else merged[k], sh.color, "nonzero") if k in clean else sh
+              for k, sh in enumerate(vec.shapes)]  # untangled shapes nonzero; the others keep our cubics and starts
     return VectorImage(vec.width, vec.height, shapes)
 
 
