@@ -107,7 +107,8 @@ def test_crosses_agrees_with_testing_every_pair():
 def test_crosses_each_agrees_with_every_pair_in_any_bands_and_blocks(monkeypatch):
     """``crosses_each`` of many shapes at once (one sweep along x within bands of every shape)
     gives, for each, what testing every pair of its edges gives, whatever the bands' height
-    (``SWEEP_BAND`` 1 px, 8, 1000: one band) and in blocks of a few pairs (``SWEEP_PAIRS`` 64)."""
+    (``SWEEP_BAND`` 1 px, 8, 1000: one band), in blocks of a few pairs (``SWEEP_PAIRS`` 64) and a
+    few shapes at a time (``SWEEP_CUBICS`` 10)."""
     import sys
 
     untangle_module = sys.modules["im2vec_cli.trace.untangle"]
@@ -115,10 +116,12 @@ def test_crosses_each_agrees_with_every_pair_in_any_bands_and_blocks(monkeypatch
     shapes.insert(7, [])  # an empty shape among them
     want = np.array([bool(s) and _crosses_everywhere(s) for s in shapes])
     assert 0.2 < want.mean() < 0.8
-    for band, pairs in ((8, 1 << 22), (1, 1 << 22), (1000, 1 << 22), (8, 64)):
+    for band, pairs, cubics in ((8, 1 << 22, 1 << 12), (1, 1 << 22, 1 << 12), (1000, 1 << 22, 1 << 12), (8, 64, 1 << 12),
+                                (8, 1 << 22, 10)):
         monkeypatch.setattr(untangle_module, "SWEEP_BAND", band)
         monkeypatch.setattr(untangle_module, "SWEEP_PAIRS", pairs)
-        assert np.array_equal(untangle_module.crosses_each(shapes), want), (band, pairs)
+        monkeypatch.setattr(untangle_module, "SWEEP_CUBICS", cubics)
+        assert np.array_equal(untangle_module.crosses_each(shapes), want), (band, pairs, cubics)
 
 
 def test_a_shape_without_contours_crosses_nothing():

@@ -40,6 +40,7 @@ MAX_PIECES = 100_000  # ...and pieces at most when --max-paths keeps only the la
 WHITE_TOL = 0.06  # a colour within this (max channel distance) of white is white
 TWO_TONE_TOL = 0.08  # pixels this far (RGB distance) from the background-ink line break two-tone...
 TWO_TONE_SHARE = 0.005  # ...when more than this share of the pixels do
+GRID_KEPT = 1024  # px: contourpy's grid is kept for fields this small (a photo's pieces), 256 sizes at most (5 MB)
 
 
 @dataclass
@@ -68,7 +69,7 @@ def level_polygons(field: np.ndarray, level: float = 0.5, min_area: float = 0.5,
     padded[1:-1, 1:-1] = field
     if not np.isfinite(padded).all():
         raise ValueError("level_polygons: the field must be finite")
-    x, y = _grid(h + 2, w + 2)
+    x, y = _grid(h + 2, w + 2) if h * w <= GRID_KEPT else _grid.__wrapped__(h + 2, w + 2)
     # contour_generator(x, y, padded, fill_type="OuterOffset") without its NaN check (0.7 s of a photo's 6,000 calls)
     gen = contourpy.SerialContourGenerator(x, y, padded, None, corner_mask=True, line_type=contourpy.LineType.SeparateCode,
                                            fill_type=contourpy.FillType.OuterOffset, quad_as_tri=False,
@@ -84,13 +85,12 @@ def level_polygons(field: np.ndarray, level: float = 0.5, min_area: float = 0.5,
     return rings
 
 
-@functools.lru_cache(maxsize=512)
+@functools.lru_cache(maxsize=256)
 def _grid(h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
     """The pixel centres of an ``(h, w)`` field padded by one, as contourpy takes them (shared, read-only)."""
-    grid = np.meshgrid(np.arange(w) - 0.5, np.arange(h) - 0.5)
-    for a in grid:
-        a.setflags(write=False)
-    return grid[0], grid[1]
+    x, y = np.meshgrid(np.arange(w) - 0.5, np.arange(h) - 0.5)
+    x.flags.writeable = y.flags.writeable = False
+    return x, y
 
 
 def background_color(image: np.ndarray) -> np.ndarray:
