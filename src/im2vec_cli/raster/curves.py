@@ -83,4 +83,5 @@ def flatten_cubics(ctrl: np.ndarray, samples: int) -> np.ndarray:
 def ring_area(verts: np.ndarray) -> np.ndarray:
     """Signed shoelace area of closed polylines ``(..., V, 2)`` -> ``(...)``."""
     x, y = verts[..., 0], verts[..., 1]
-    return 0.5 * (x * np.roll(y, -1, -1) - np.roll(x, -1, -1) * y).sum(-1)
+    x1, y1 = (np.concatenate([a[..., 1:], a[..., :1]], -1) for a in (x, y))  # np.roll(a, -1, -1), without its overhead
+    return 0.5 * (x * y1 - x1 * y).sum(-1)

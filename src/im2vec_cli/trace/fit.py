@@ -161,7 +161,8 @@ def fit_runs(runs: list[tuple[np.ndarray, np.ndarray, np.ndarray]], tol: float) 
         turned = np.minimum(np.abs(t0[:, 0] * chord[:, 1] - t0[:, 1] * chord[:, 0]),
                             np.abs(t1[:, 0] * chord[:, 1] - t1[:, 1] * chord[:, 0]))
         depth = np.array([p[5] for p in pending])  # a straight run (a split piece only if its tangents allow it):
-        straight = (_line_errors([p[2] for p in pending]) <= tol) & ((depth == 0) | (turned <= 0.02 * np.hypot(*chord.T)))
+        allowed = (depth == 0) | (turned <= 0.02 * np.hypot(*chord.T))
+        straight = (_line_errors([p[2] for p in pending]) <= tol) & allowed
         lines = np.stack([p0, *line_controls(p0, p3), p3], 1)  # (P, 4, 2)
         fit = []
         for k, (r, key, pts, t0, t1, depth) in enumerate(pending):

@@ -22,8 +22,8 @@ def untangle(vec: VectorImage, merge_tol: float = 0.25) -> VectorImage:
     nothing. Shapes without crossings are kept as they are, and so is a shape that Skia's path
     ops fail on (rare: nearly coincident curves), with its coordinates snapped and without."""
     tangled = crosses_each([sh.contours for sh in vec.shapes])
-    clean = {k: _outline(vec.shapes[k]) for k in np.flatnonzero(tangled).tolist()}  # None: Skia could not resolve it (its
-    clean = {k: c for k, c in clean.items() if c is not None}  # loop is a fraction of a pixel): the shape is kept
+    clean = {k: _outline(vec.shapes[k]) for k in np.flatnonzero(tangled).tolist()}  # None: Skia could not
+    clean = {k: c for k, c in clean.items() if c is not None}  # resolve it (its loop is a fraction of a pixel): kept
     long = [(k, i) for k, cs in clean.items() for i, c in enumerate(cs) if len(c) >= 9]  # path ops split curves:
     merged = {k: list(cs) for k, cs in clean.items()}  # merged again, all shapes' contours at once
     for (k, i), c in zip(long, simplify_contours([clean[k][i] for k, i in long], merge_tol)):
