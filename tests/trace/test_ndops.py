@@ -135,3 +135,12 @@ def test_norm3_is_numpys_norm_bit_for_bit():
     a = np.random.default_rng(5).normal(size=(17, 23, 3))
     assert np.array_equal(ndops.norm3(a), np.linalg.norm(a, axis=-1))
     assert np.array_equal(ndops.norm3(a[:, 0]), np.linalg.norm(a[:, 0], axis=-1))
+
+
+def test_run_places_counts_within_each_run():
+    """``run_places``: each item's place in its run, empty runs and all, as a loop of aranges gives it."""
+    from im2vec_cli.trace.ndops import run_places
+
+    counts = [2, 0, 3, 1, 0]
+    assert np.array_equal(run_places(counts), np.concatenate([np.arange(c) for c in counts]))
+    assert run_places([]).shape == (0,)

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..raster.curves import cubics_at, line_controls
+from .ndops import run_places
 
 Corners = list[list[np.ndarray]]  # per shape, per contour: (S,) bool, true where anchor i is sharp
 
@@ -238,7 +239,7 @@ class _Rings:
         self.pts = np.concatenate(pts) if pts else np.zeros((0, 2))
         self.of = np.repeat(np.arange(len(pts)), size)
         self.size, self.n, self.first = size, size[self.of], self.starts[self.of]
-        self.at = np.arange(len(self.pts)) - self.first
+        self.at = run_places(size)
 
     def shift(self, k: int) -> np.ndarray:
         return self.first + (self.at + k) % self.n
@@ -320,8 +321,7 @@ def _cut(rs: _Rings, found: list[list[int]], pts: np.ndarray) -> list[tuple[np.n
     length = (b - a) % n
     length = np.where(length == 0, n, length) + 1  # points a run, both corners included
     where = np.cumsum(length) - length
-    step = np.arange(length.sum()) - np.repeat(where, length)
-    idx = np.repeat(first, length) + (np.repeat(a, length) + step) % np.repeat(n, length)
+    idx = np.repeat(first, length) + (np.repeat(a, length) + run_places(length)) % np.repeat(n, length)
     reach = np.minimum(max(2, round(1.5 / STEP)), length - 1)
     tangents = []
     for end, sign in ((where, 1), (where + length - 1, -1)):  # the start's points after it, the end's before it

@@ -256,6 +256,13 @@ def distinct(pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return ranked[new], back
 
 
+def run_places(counts: np.ndarray) -> np.ndarray:
+    """For runs of ``counts (R,)`` items laid end to end, each item's place in its run:
+    ``(sum(counts),)`` int64, ``arange(c)`` of each run one after another."""
+    counts = np.asarray(counts, dtype=np.int64)
+    return np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
+
+
 def nearest(data: np.ndarray, centres: np.ndarray) -> np.ndarray:
     """``scipy.cluster.vq.vq(data, centres)[0]``: each row's nearest centre (squared Euclidean,
     summed over the columns in order; the first on a tie); ``(N,)`` int32."""

@@ -286,7 +286,7 @@ def flattened(picture: np.ndarray) -> tuple[np.ndarray, float]:
     if coef is None:
         return picture, 0.0  # too little paper to fit its light: as it is
     full = _surface(coef, (np.arange(w) + 0.5) / w, (np.arange(h) + 0.5) / h)  # (H, W, 3)
-    spread = float(mean3(light).max() - mean3(light).min())
+    spread = float(np.ptp(mean3(light)))
     return np.clip(picture / np.clip(full, 0.05, None), 0, 1), spread
 
 

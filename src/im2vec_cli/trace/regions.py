@@ -298,8 +298,8 @@ def _pieces(palette: np.ndarray, labels: np.ndarray, max_regions: int | None, ea
     if each_one:  # (label map, its number in it, box) of each label k
         found = [[(labels, k, box)] for k, box in enumerate(boxes(labels, len(palette)))]
     else:
-        found = [[(lab, p, box) for p, box in enumerate(found, 1)]
-                 for lab, found in (pieces(labels == k, eight=True) for k in range(len(palette)))]
+        found = [[(lab, p, box) for p, box in enumerate(colour_boxes, 1)]
+                 for lab, colour_boxes in (pieces(labels == k, eight=True) for k in range(len(palette)))]
     _check_pieces(sum(map(len, found)), f"pieces of {len(palette)} colours", max_regions)
     out, white = [], _white(palette)  # (once: a photo's palette is a colour a piece, thousands)
     for k, each in enumerate(found):

@@ -11,6 +11,7 @@ import numpy as np
 
 from ..raster.curves import flatten_cubics
 from ..vector import VectorImage, VectorShape, skia
+from .ndops import run_places
 from .simplify import simplify_contours
 
 
@@ -87,14 +88,14 @@ class _Edges:
         n3 = np.array([len(c) for _, c in cs])
         segs = n3 // 3  # cubics a contour
         first = np.repeat(np.cumsum(n3) - n3, segs)  # each cubic's contour's first point
-        s = np.arange(segs.sum()) - np.repeat(np.cumsum(segs) - segs, segs)  # each cubic's number along it
+        s = run_places(segs)  # each cubic's number along its contour
         pts = np.concatenate([c for _, c in cs])
         ctrl = pts[first[:, None] + (3 * s[:, None] + np.arange(4)) % np.repeat(n3, segs)[:, None]]  # (C, 4, 2)
         self.a = flatten_cubics(ctrl, samples)  # each contour's flatten_ring, one after another
         size = segs * samples
         self.owner = np.repeat(np.arange(len(cs)), size)
         self.size = size[self.owner]
-        self.index = np.arange(len(self.a)) - np.repeat(np.cumsum(size) - size, size)
+        self.index = run_places(size)
         nxt = np.arange(len(self.a)) + 1
         nxt[self.index == self.size - 1] -= self.size[self.index == self.size - 1]  # a contour's last edge closes it
         b = self.a[nxt]
@@ -134,7 +135,7 @@ def _swept(edges: _Edges, count: int) -> np.ndarray:
     b0 = np.floor((edges.lo[:, 1] - y0) / SWEEP_BAND).astype(np.int64)
     n = np.floor((edges.hi[:, 1] - y0) / SWEEP_BAND).astype(np.int64) - b0 + 1
     edge = np.repeat(np.arange(len(edges.a)), n)  # one row per (edge, band)
-    band = np.repeat(b0, n) + np.arange(len(edge)) - np.repeat(np.cumsum(n) - n, n)
+    band = np.repeat(b0, n) + run_places(n)
     group = np.unique(edges.shape[edge] * (int(band.max()) + 1) + band, return_inverse=True)[1]
     x0 = edges.lo[:, 0].min()
     span = float(edges.hi[:, 0].max() - x0) + 2  # groups' keys apart by more than any x
@@ -149,7 +150,7 @@ def _swept(edges: _Edges, count: int) -> np.ndarray:
         stop_at = max(int(np.searchsorted(ends, ends[start] - after[start] + SWEEP_PAIRS, "right")), start + 1)
         c = after[start:stop_at]
         first = np.repeat(np.arange(start, stop_at), c)
-        i, j = edge[first], edge[first + 1 + np.arange(c.sum()) - np.repeat(np.cumsum(c) - c, c)]
+        i, j = edge[first], edge[first + 1 + run_places(c)]
         meet = (edges.lo[j] <= edges.hi[i]).all(1) & (edges.lo[i] <= edges.hi[j]).all(1)
         i, j = i[meet], j[meet]
         out[edges.shape[i[edges.hit(i, j)]]] = True
