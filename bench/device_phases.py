@@ -9,7 +9,7 @@ models into one such command, in three steps:
 (a run ``SET.TAG`` is another phase of SET, e.g. a control beside it, sharing its pictures),
 the PNGs of DATA/<set>/{train,val}, the shipped weights the phase starts from
 (``models/<set>``'s config.json and model.safetensors) and the phase's config, plus the
-wheels the machine lacks (svgwrite). It prints the bytes that travel.
+wheels the machine lacks (svgwrite, the SVG writer's test reference). It prints the bytes that travel.
 
 ``run`` (there, ``python3 bench/device_phases.py run --seconds S``): all sets train at once on
 the one GPU, each as ``im2vec train --init``. A short calibration run per set first (killed once
@@ -44,7 +44,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 PACK = ROOT / ".gpu"
-WHEELS = ("svgwrite==1.4.3",)  # what train imports that the machine's image lacks
+WHEELS = ("svgwrite==1.4.3",)  # what the machine's image lacks (the dev extras' reference for the SVG writer)
 END_SECONDS = 50  # kept after training: the latent prior (if it fits in), the fp16 export and the tars
 STARTUP_SECONDS = 30  # a run's model, pictures and first steps before its speed holds (MNIST's 25,000 PNGs: ~20 s)
 CALIBRATION_LOGS = 3  # logged train events (every 10 steps) a speed is measured over

@@ -53,6 +53,28 @@ def test_a_hard_edged_picture_is_traced_exactly_along_its_pixels():
     assert hard_palette(aa) is None  # its edges blend two colours
 
 
+@pytest.mark.parametrize("colours", [4, 40, 64, 65, 90])
+def test_hard_palette_finds_the_colours_np_unique_finds(colours):
+    """The palette read from a sample's colours first equals ``np.unique``'s, colours the sample
+    misses (a few pixels each) included, and a colour over ``MAX_HARD_COLORS`` is refused."""
+    from im2vec_cli.trace.palette import MAX_HARD_COLORS
+
+    rng = np.random.default_rng(colours)
+    pal = rng.permutation(256 ** 3)[:colours]
+    labels = np.zeros((300, 300), dtype=np.int64)  # the first colour nearly everywhere...
+    labels[rng.integers(0, 300, 400), rng.integers(0, 300, 400)] = rng.integers(0, colours, 400)  # ...the rest rare
+    labels.ravel()[:colours] = np.arange(colours)  # (each present)
+    img = np.stack([pal[labels] >> 16, (pal[labels] >> 8) & 255, pal[labels] & 255], -1) / 255
+    got = hard_palette(img, pixel=True)
+    if colours > MAX_HARD_COLORS:
+        assert got is None
+        return
+    q = np.round(img * 255).astype(np.int64)
+    values, inverse = np.unique(((q[..., 0] << 16) | (q[..., 1] << 8) | q[..., 2]).ravel(), return_inverse=True)
+    assert np.array_equal(got[0] * 255, np.stack([values >> 16, (values >> 8) & 255, values & 255], 1))
+    assert np.array_equal(got[1], inverse.reshape(300, 300))
+
+
 def test_pictures_beyond_the_region_bound_are_one_trace_error(monkeypatch):
     """A one-pixel checkerboard (two-tone: its outlines) and noise (its pieces) are refused by
     count, before the work that would take minutes; --max-paths lifts the piece bound."""

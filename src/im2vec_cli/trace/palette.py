@@ -31,13 +31,22 @@ def hard_palette(image: np.ndarray, pixel: bool = False) -> tuple[np.ndarray, np
         return None
     q = np.round(image * 255).astype(np.int64)
     keys = ((q[..., 0] << 16) | (q[..., 1] << 8) | q[..., 2]).ravel()
-    if len(np.unique(keys[:: max(1, len(keys) // 4096)])) > MAX_HARD_COLORS:  # most pictures: a sample says no
+    sample = np.unique(keys[:: max(1, len(keys) // 4096)])
+    if len(sample) > MAX_HARD_COLORS:  # most pictures: a sample says no
         return None
-    values, inverse = np.unique(keys, return_inverse=True)
-    if pixel:
+    inverse = np.minimum(np.searchsorted(sample, keys), len(sample) - 1)
+    missed = keys[sample[inverse] != keys]  # np.unique(keys, return_inverse=True), from the sample's colours on
+    if len(missed):
+        values = np.union1d(sample, missed[:: max(1, len(missed) // 4096)])
         if len(values) > MAX_HARD_COLORS:
             return None
-    elif not 3 <= len(values) <= MAX_HARD_COLORS or _blends(q) > max(2, MAX_BLENDS * len(keys)):
+        values = np.union1d(values, missed)
+        inverse = np.searchsorted(values, keys)
+    else:
+        values = sample
+    if len(values) > MAX_HARD_COLORS:
+        return None
+    if not pixel and (len(values) < 3 or _blends(q) > max(2, MAX_BLENDS * len(keys))):
         return None
     palette = np.stack([values >> 16, (values >> 8) & 255, values & 255], 1) / 255
     return palette, inverse.reshape(image.shape[:2])

@@ -8,7 +8,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-import svgwrite
 
 from .image import VectorImage
 
@@ -38,18 +37,29 @@ def contour_d(points: np.ndarray, decimals: int = 2) -> str:
     return " ".join(parts)
 
 
+SVG_ROOT = {"baseProfile": "full", "version": "1.1", "xmlns": "http://www.w3.org/2000/svg",
+            "xmlns:ev": "http://www.w3.org/2001/xml-events", "xmlns:xlink": "http://www.w3.org/1999/xlink"}
+
+
 def to_svg(image: VectorImage, decimals: int = 2) -> str:
-    """SVG text: one ``<path>`` per shape, back to front, each contour a subpath."""
-    w, h = image.width, image.height
-    # debug=False: no per-attribute validation (the values are ours and well-formed; 5x faster)
-    dwg = svgwrite.Drawing(size=(number_text(w, decimals), number_text(h, decimals)), profile="full", debug=False)
-    dwg["viewBox"] = f"0 0 {number_text(w, decimals)} {number_text(h, decimals)}"
+    """SVG text: one ``<path>`` per shape, back to front, each contour a subpath.
+
+    The element tree svgwrite's ``Drawing`` (``profile="full"``) builds and writes, built here
+    with the standard library's ElementTree that svgwrite writes through, without svgwrite's
+    import (46 ms, its validators; a tenth of a one-picture call): the same text byte for byte.
+    """
+    from xml.etree import ElementTree
+
+    w, h = number_text(image.width, decimals), number_text(image.height, decimals)
+    root = ElementTree.Element("svg", dict(sorted({**SVG_ROOT, "height": h, "width": w,
+                                                   "viewBox": f"0 0 {w} {h}"}.items())))
+    ElementTree.SubElement(root, "defs")
     for shape in image.shapes:
-        if not shape.contours:
-            continue
-        d = " ".join(contour_d(c, decimals) for c in shape.contours)
-        dwg.add(dwg.path(d=d, fill=hex_color(shape.color), fill_rule=shape.fill_rule, stroke="none"))
-    return dwg.tostring()
+        if shape.contours:  # attributes in svgwrite's (sorted) order
+            ElementTree.SubElement(root, "path", {"d": " ".join(contour_d(c, decimals) for c in shape.contours),
+                                                  "fill": hex_color(shape.color), "fill-rule": shape.fill_rule,
+                                                  "stroke": "none"})
+    return ElementTree.tostring(root, encoding="utf-8").decode("utf-8")
 
 
 def flipbook_svg(frames: list[VectorImage], seconds: float = 3.0, decimals: int = 2) -> str:
