@@ -24,7 +24,8 @@ from .events import WorkerDied
 from .options import VectorizeOptions
 
 _state: dict = {}
-TRACE_IMPORTS = ["cv2", "contourpy", "pathops"]  # what tracing imports on first use:
+TRACE_IMPORTS = ["cv2", "contourpy", "pathops", "numpy.ma", "xml.etree.ElementTree", "PIL.PngImagePlugin",
+                 "PIL.JpegImagePlugin"]  # what tracing imports on first use (numpy.ma: np.unique's):
 # once in the fork server, not once a worker
 
 

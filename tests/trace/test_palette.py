@@ -99,7 +99,7 @@ def test_quantize_keeps_its_last_results(monkeypatch):
     calls = []
     real = palette._quantize
     monkeypatch.setattr(palette, "_quantize", lambda *a, **k: calls.append(1) or real(*a, **k))
-    monkeypatch.setattr(palette, "_kept", {})
+    monkeypatch.setattr(palette, "_kept", [])
     pic = np.random.default_rng(3).random((24, 24, 3))
     p1, l1 = quantize(pic, None)
     l1[:] = -1
@@ -109,3 +109,6 @@ def test_quantize_keeps_its_last_results(monkeypatch):
     quantize(pic + 0.001, None)
     quantize(pic, None)  # kept are the last two: this one was pushed out
     assert len(calls) == 4
+    pic[5, 5, 1] += 0.5  # the picture changed where it was kept from: quantised anew
+    quantize(pic, None)
+    assert len(calls) == 5
