@@ -124,22 +124,21 @@ def fit_cubic(pts: np.ndarray, u: np.ndarray, t0: np.ndarray, t1: np.ndarray, it
     return ctrl[0], u[0]
 
 
-def _line_errors(runs: list[np.ndarray]) -> np.ndarray:
-    """For each run ``(N, 2)``, the largest distance of its points from the line through its
-    ends (from its first point where the ends meet): ``(R,)``."""
-    n = np.array([len(r) for r in runs])
-    first = np.cumsum(n) - n
-    pts = np.concatenate(runs)
+def _line_errors(pts: np.ndarray, first: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """For each run ``pts[first : first + n]`` (of ``pts (P, 2)``), the largest distance of its
+    points from the line through its ends (from its first point where the ends meet): ``(R,)``."""
+    idx = np.repeat(first, n) + run_places(n)
+    at = np.cumsum(n) - n  # each run's first place in ``idx``
     p0 = pts[first]
     d = pts[first + n - 1] - p0
     length = np.hypot(*d.T)
-    of = np.repeat(np.arange(len(runs)), n)
-    q = pts - p0[of]
+    of = np.repeat(np.arange(len(n)), n)
+    q = pts[idx] - p0[of]
     off = np.abs(q[:, 0] * d[of, 1] - q[:, 1] * d[of, 0])
-    far = np.maximum.reduceat(off, first) / np.where(length < 1e-12, 1, length)
+    far = np.maximum.reduceat(off, at) / np.where(length < 1e-12, 1, length)
     closed = length < 1e-12
     if closed.any():
-        far[closed] = np.maximum.reduceat(np.hypot(*q.T), first)[closed]
+        far[closed] = np.maximum.reduceat(np.hypot(*q.T), at)[closed]
     return far
 
 
@@ -152,39 +151,61 @@ def fit_runs(runs: list[tuple[np.ndarray, np.ndarray, np.ndarray]], tol: float) 
 
     A run that no cubic fits is split at its worst point (a smooth join) and its halves are
     fitted in the next round, breadth first: every piece of every run pending in a round is
-    fitted by one ``fit_cubics``. Returns each run's cubics in order along it."""
-    done: list[list[tuple[tuple, np.ndarray]]] = [[] for _ in runs]
-    pending = [(r, (), pts, t0, t1, 0) for r, (pts, t0, t1) in enumerate(runs)]
-    while pending:
-        p0 = np.stack([p[2][0] for p in pending])
-        p3 = np.stack([p[2][-1] for p in pending])
-        t0, t1, chord = np.stack([p[3] for p in pending]), np.stack([p[4] for p in pending]), p3 - p0
+    fitted by one ``fit_cubics``. The pieces are spans of the runs' points laid end to end,
+    each round's arrays of them (its run, first point, size, tangents, depth), in the order
+    the halves were made. Returns each run's cubics in order along it."""
+    if not runs:
+        return []
+    size = np.array([len(p) for p, _, _ in runs], dtype=np.int64)
+    pts = np.concatenate([p for p, _, _ in runs])
+    run, first, n = np.arange(len(runs)), np.cumsum(size) - size, size
+    t0, t1 = np.stack([t for _, t, _ in runs]), np.stack([t for _, _, t in runs])
+    depth = np.zeros(len(runs), dtype=np.int64)
+    done: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # (runs, first points, cubics) of finished pieces
+    while len(run):
+        p0, p3 = pts[first], pts[first + n - 1]
+        chord = p3 - p0
         turned = np.minimum(np.abs(t0[:, 0] * chord[:, 1] - t0[:, 1] * chord[:, 0]),
                             np.abs(t1[:, 0] * chord[:, 1] - t1[:, 1] * chord[:, 0]))
-        depth = np.array([p[5] for p in pending])  # a straight run (a split piece only if its tangents allow it):
-        allowed = (depth == 0) | (turned <= 0.02 * np.hypot(*chord.T))
-        straight = (_line_errors([p[2] for p in pending]) <= tol) & allowed
-        lines = np.stack([p0, *line_controls(p0, p3), p3], 1)  # (P, 4, 2)
-        fit = []
-        for k, (r, key, pts, t0, t1, depth) in enumerate(pending):
-            if straight[k]:
-                done[r].append((key, lines[k]))
-            elif len(pts) <= 3:
-                n = np.hypot(*(pts[-1] - pts[0])) / 3
-                done[r].append((key, np.stack([pts[0], pts[0] + n * t0, pts[-1] + n * t1, pts[-1]])))
-            else:
-                fit.append((r, key, pts, t0, t1, depth))
-        pending = []
-        for block in _blocks(fit):
-            ctrls, worst, where = _fit_block(block)
-            for (r, key, p, t0, t1, depth), ctrl, err, at in zip(block, ctrls, worst.tolist(), where.tolist()):
-                if err <= tol or depth > MAX_DEPTH:
-                    done[r].append((key, ctrl))
-                    continue
-                i = min(max(at, 2), len(p) - 3)
-                tc = _unit(p[i + 2] - p[i - 2])  # the split is a smooth join
-                pending += [(r, key + (0,), p[: i + 1], t0, -tc, depth + 1), (r, key + (1,), p[i:], tc, t1, depth + 1)]
-    return [[c for _, c in sorted(d, key=lambda kc: kc[0])] for d in done]
+        allowed = (depth == 0) | (turned <= 0.02 * np.hypot(*chord.T))  # (a split piece straight only if its
+        straight = (_line_errors(pts, first, n) <= tol) & allowed  # tangents allow it)
+        short = ~straight & (n <= 3)
+        third = np.hypot(*(p3 - p0)[short].T)[:, None] / 3
+        done += [(run[straight], first[straight], np.stack([p0, *line_controls(p0, p3), p3], 1)[straight]),
+                 (run[short], first[short], np.stack([p0[short], p0[short] + third * t0[short],
+                                                      p3[short] + third * t1[short], p3[short]], 1))]
+        fit = np.flatnonzero(~straight & ~short)
+        halves = []
+        for block in _blocks(fit[np.argsort(n[fit], kind="stable")], n):
+            ctrl, worst, where = _fit_block(pts, first[block], n[block], t0[block], t1[block])
+            ok = (worst <= tol) | (depth[block] > MAX_DEPTH)
+            done.append((run[block][ok], first[block][ok], ctrl[ok]))
+            if not ok.all():
+                halves.append(_halves(pts, block[~ok], where[~ok], run, first, n, t0, t1, depth))
+        run, first, n, t0, t1, depth = (np.concatenate(a) for a in zip(*halves)) if halves else ([],) * 6
+    runs_, firsts, ctrls = (np.concatenate(a) for a in zip(*done))
+    order = np.lexsort((firsts, runs_))  # along each run: a piece's halves split it at a later point
+    ctrls = list(ctrls[order])
+    return [ctrls[a:b] for a, b in zip(*_bounds(np.bincount(runs_, minlength=len(runs))))]
+
+
+def _bounds(counts: np.ndarray) -> tuple[list[int], list[int]]:
+    ends = np.cumsum(counts)
+    return (ends - counts).tolist(), ends.tolist()
+
+
+def _halves(pts: np.ndarray, which: np.ndarray, at: np.ndarray, run, first, n, t0, t1, depth) -> tuple:
+    """The pieces ``which`` split at their points ``at`` (kept 2 points from either end) into two
+    halves that share the split point, where they join smoothly (the tangent of the points 2
+    before and after it): the halves' ``(run, first, n, t0, t1, depth)``, each piece's first
+    half then its second, in the pieces' order."""
+    i = np.minimum(np.maximum(at, 2), n[which] - 3)  # (a piece of 4 points: 1)
+    v = pts[first[which] + i + 2] - pts[first[which] + (i - 2) % n[which]]  # (from its last point then)
+    norm = np.hypot(*v.T)[:, None]
+    tc = np.where(norm > 1e-12, v / np.where(norm > 1e-12, norm, 1), v)  # _unit of each
+    pair = (lambda a, b: np.stack([a, b], 1).reshape(-1, *np.shape(a)[1:]))  # a0 b0 a1 b1 ...
+    return (pair(run[which], run[which]), pair(first[which], first[which] + i), pair(i + 1, n[which] - i),
+            pair(t0[which], tc), pair(-tc, t1[which]), pair(depth[which] + 1, depth[which] + 1))
 
 
 FIT_BLOCK = 1 << 21  # points in one ``fit_cubics`` batch (pieces x the longest piece): bounded memory
@@ -192,34 +213,36 @@ FIT_SPREAD = 2  # pieces fitted in one batch are at most this many times longer 
 # the longest, a batch of all of a picture's pieces held 21-37 times its points (Adwaita icons, scikit-image's logo)
 
 
-def _blocks(fit: list[tuple]) -> list[list[tuple]]:
-    """The pieces to fit (``(run, key, pts, t0, t1, depth)``) in batches by length: each of pieces
-    within ``FIT_SPREAD`` times of each other's length and at most ``FIT_BLOCK`` padded points."""
-    out, cur = [], []
-    for f in sorted(fit, key=lambda f: len(f[2])):
-        if cur and (len(f[2]) > FIT_SPREAD * len(cur[0][2]) or (len(cur) + 1) * len(f[2]) > FIT_BLOCK):
-            out.append(cur)
-            cur = []
-        cur.append(f)
-    return out + [cur] if cur else out
+def _blocks(order: np.ndarray, n: np.ndarray) -> list[np.ndarray]:
+    """The pieces ``order`` (shortest first; ``n``: every piece's points) in batches: each of
+    pieces within ``FIT_SPREAD`` times of each other's length and at most ``FIT_BLOCK`` padded points."""
+    out, begin = [], 0
+    sizes = n[order].tolist()
+    for j, m in enumerate(sizes):
+        if j > begin and (m > FIT_SPREAD * sizes[begin] or (j - begin + 1) * m > FIT_BLOCK):
+            out.append(order[begin:j])
+            begin = j
+    return out + [order[begin:]] if len(sizes) > begin else out
 
 
-def _fit_block(fit: list[tuple]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``fit_cubics`` of pieces ``(run, key, pts, t0, t1, depth)`` padded to the longest:
-    control points ``(R, 4, 2)``, each piece's largest distance from its points to its cubic
-    at their parameters ``(R,)`` and the index of the (first) farthest point ``(R,)``."""
-    size = max(len(f[2]) for f in fit)
-    pts = np.zeros((len(fit), size, 2))
-    mask = np.zeros((len(fit), size), dtype=bool)
-    u = np.zeros((len(fit), size))
-    n = np.array([len(f[2]) for f in fit])
-    mask[:] = np.arange(size) < n[:, None]
-    pts[mask] = np.concatenate([f[2] for f in fit])
-    seg = np.where(mask[:, 1:], np.hypot(*np.moveaxis(np.diff(pts, axis=1), -1, 0)), 0)  # (R, L - 1)
-    total = [seg[j, : n[j] - 1].sum() for j in range(len(fit))]  # as a run alone sums it (pairwise)
+def _fit_block(pts: np.ndarray, first: np.ndarray, n: np.ndarray, t0: np.ndarray, t1: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``fit_cubics`` of the pieces ``pts[first : first + n]`` padded to the longest: control
+    points ``(R, 4, 2)``, each piece's largest distance from its points to its cubic at their
+    parameters ``(R,)`` and the index of the (first) farthest point ``(R,)``."""
+    size = int(n.max())
+    mask = np.arange(size) < n[:, None]
+    padded = np.zeros((len(n), size, 2))
+    padded[mask] = pts[(first[:, None] + np.arange(size))[mask]]
+    seg = np.where(mask[:, 1:], np.hypot(*np.moveaxis(np.diff(padded, axis=1), -1, 0)), 0)  # (R, L - 1)
+    total = np.empty(len(n))
+    for m in np.unique(n).tolist():  # as a run alone sums its m - 1 lengths (pairwise): pieces of one size at once
+        rows = n == m
+        total[rows] = seg[rows, : m - 1].sum(1)
+    u = np.zeros((len(n), size))
     u[:, 1:] = np.cumsum(seg, 1) / np.maximum(total, 1e-12)[:, None] * mask[:, 1:]  # chord-length parameters
-    ctrl, u = fit_cubics(pts, mask, u, np.stack([f[3] for f in fit]), np.stack([f[4] for f in fit]), 4)
-    err = np.where(mask, np.hypot(*np.moveaxis(cubics_at(ctrl, u) - pts, -1, 0)), -np.inf)  # (R, L)
+    ctrl, u = fit_cubics(padded, mask, u, t0, t1, 4)
+    err = np.where(mask, np.hypot(*np.moveaxis(cubics_at(ctrl, u) - padded, -1, 0)), -np.inf)  # (R, L)
     return ctrl, err.max(1), err.argmax(1)
 
 
