@@ -12,6 +12,8 @@ Masks are ``(H, W)`` bool, fields ``(H, W)`` float64; 2-D only unless a function
 
 from __future__ import annotations
 
+import functools
+
 import cv2
 import numpy as np
 
@@ -114,11 +116,7 @@ def gaussian(field: np.ndarray, sigma: float) -> np.ndarray:
     ``(H, W, C)`` (``sigma`` along H and W only), edges mirrored, the kernel cut at 4 sigma
     and normalised as SciPy's; float64 out. A float32 ``field`` is rounded to float32 after
     each axis, as SciPy's float32 output is (then returned as float64)."""
-    radius = int(4.0 * sigma + 0.5)
-    x = np.arange(-radius, radius + 1)
-    phi = np.exp(-0.5 / (sigma * sigma) * x**2)
-    phi = phi / phi.sum()
-    one = np.ones(1)
+    phi, one = _gaussian_kernel(float(sigma)), np.ones(1)
     if np.asarray(field).dtype == np.float32:
         a = np.ascontiguousarray(field)
         a = cv2.sepFilter2D(a.astype(np.float64), cv2.CV_64F, one, phi, borderType=cv2.BORDER_REFLECT)  # along H
@@ -127,6 +125,17 @@ def gaussian(field: np.ndarray, sigma: float) -> np.ndarray:
         return a.astype(np.float32).astype(np.float64)
     a = np.ascontiguousarray(field, dtype=np.float64)
     return cv2.sepFilter2D(a, cv2.CV_64F, phi, phi, borderType=cv2.BORDER_REFLECT)
+
+
+@functools.lru_cache(maxsize=16)
+def _gaussian_kernel(sigma: float) -> np.ndarray:
+    """SciPy's 1-D Gaussian of ``sigma``, cut at 4 sigma and normalised (shared, read-only)."""
+    radius = int(4.0 * sigma + 0.5)
+    x = np.arange(-radius, radius + 1)
+    phi = np.exp(-0.5 / (sigma * sigma) * x**2)
+    phi = phi / phi.sum()
+    phi.flags.writeable = False
+    return phi
 
 
 def box_mean(field: np.ndarray, size: int) -> np.ndarray:

@@ -377,13 +377,13 @@ def _edge_field(image: np.ndarray, color: np.ndarray, grown: np.ndarray, above: 
     band = dilate(grown) & dilate(~grown) & dilate(below)
     if not band.any():
         return field
-    count = box_mean(below, 5)
-    other = box_mean(image * below[..., None], 5) / np.maximum(count, 1e-9)[..., None]
-    axis = color - other  # (H, W, 3)
+    count, near = box_mean(below, 5), box_mean(image * below[..., None], 5)
+    ys, xs = np.nonzero(band & ~above & (count > 1e-6))  # (a pixel under a piece above shows that piece)
+    other = near[ys, xs] / np.maximum(count[ys, xs], 1e-9)[:, None]  # (M, 3): only where it is used
+    axis = color - other
     norm = (axis * axis).sum(-1)
-    mix = np.clip(((image - other) * axis).sum(-1) / np.maximum(norm, 1e-9), 0, 1)
-    use = band & ~above & (count > 1e-6) & (norm > 0.15**2)  # a pixel under a piece above shows that piece
-    field[use] = mix[use]
+    use = norm > 0.15**2
+    field[ys[use], xs[use]] = np.clip(((image[ys, xs] - other) * axis).sum(-1) / np.maximum(norm, 1e-9), 0, 1)[use]
     return field
 
 
