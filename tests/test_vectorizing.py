@@ -101,6 +101,25 @@ def test_folders_are_planned_by_their_cost():
     assert parallel.plan_workers(dataclasses.replace(o, effort="draft"), [(64, 64)] * 2, 2, most=2)[2] is False
 
 
+def test_a_chunks_large_pictures_go_to_workers_alone_and_come_out_the_same(tmp_path):
+    """The pictures the refinement may batch (no longer a side than the polish's) stay one group of
+    a chunk; each larger one is a group alone (it is traced alone), so a folder's photos spread over
+    the workers; the groups vectorized apart give the SVGs of the chunk vectorized whole."""
+    o = VectorizeOptions()
+    sides = [(48, 48, 3), (160, 160, 3), (64, 64, 3), (512, 300, 3)]
+    assert parallel.batch_groups(o, sides) == [[0, 2], [1], [3]]
+    assert parallel.batch_groups(dataclasses.replace(o, parts="model"), sides) == [[0, 1, 2, 3]]  # model batches
+    assert parallel.batch_groups(dataclasses.replace(o, effort="draft"), sides) == [[0], [1], [2], [3]]  # no polish
+    assert parallel.batch_groups(o, []) == []
+    pics = [np.asarray(Image.open(logo(tmp_path / f"{s}.png", s)), dtype=np.float32) / 255 for s in (48, 160, 64)]
+    model = api.ModelRef("fonts", "cpu")
+    whole = [v.to_svg() for v in api.vectorize_each(pics, model)]
+    apart = {}
+    for group in parallel.batch_groups(o, [p.shape for p in pics]):
+        apart.update(zip(group, (v.to_svg() for v in api.vectorize_each([pics[i] for i in group], model))))
+    assert [apart[i] for i in range(len(pics))] == whole
+
+
 def test_a_broken_model_is_refused_before_any_picture(tmp_path):
     """A model folder whose weights are missing, cut short or stored as int8 is an error when it is
     named, though no picture needs it yet (told from the safetensors header, without torch)."""

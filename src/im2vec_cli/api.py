@@ -43,7 +43,7 @@ from .vectorizing import model_of as _model
 _LAZY = {
     "fit_neighbours": "extras", "fit_prior": "extras", "train_aux": "extras",
     "evaluate_model": "report", "sweep_figure": "report", "test_split_note": "report",
-    "plan_workers": "parallel", "vectorize_chunks": "parallel", "vectorize_on_ray": "rayengine",
+    "plan_workers": "parallel", "batch_groups": "parallel", "vectorize_chunks": "parallel", "vectorize_on_ray": "rayengine",
     "list_images": "data.folder", "DEFAULT_CHARS": "data.fonts", "build_fonts": "data.fonts",
     "build_mnist": "data.mnist", "build_svg_set": "data.svgset",
     "from_svg": "vector", "render_vector": "vector", "contact_sheet": "vector", "flipbook_svg": "vector",

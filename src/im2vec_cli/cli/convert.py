@@ -282,9 +282,9 @@ def _in_pool(model_name, jobs, threads, device, seed, options, write, size=VECTO
             for start in range(0, len(group), size):
                 good, failed = _load(group[start : start + size], options.max_input_pixels())
                 bad.extend(failed)
-                if good:  # as (H, W, 3) arrays: tensors would travel through shared memory and a file
-                    names.append([item for item, _ in good])  # descriptor server that Ctrl-C interrupts
-                    yield [img for _, img in good]
+                for part in api.batch_groups(options, [img.shape for _, img in good]):  # (large ones alone)
+                    names.append([good[i][0] for i in part])  # as (H, W, 3) arrays: tensors would travel through
+                    yield [good[i][1] for i in part]  # shared memory and a file descriptor server that Ctrl-C stops
 
         def died(event):
             how = f" (killed by {signal.Signals(event.signal).name})" if event.signal in signal.valid_signals() else ""
