@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import io
+import json
 import os
 import pstats
 import re
@@ -221,6 +222,42 @@ def profile(path: Path, rounds: int = 3) -> str:
             + "\n".join(lines))
 
 
+BREAKDOWN = """
+import json, sys, time
+from im2vec_cli import api
+from im2vec_cli.files import load_picture
+from im2vec_cli.trace.read import read
+paths = sys.argv[1:]
+api.vectorize(paths[-1])  # the first call's one-off costs apart (not the model's: a polished picture's below)
+rows = []
+for p in paths:
+    t = time.perf_counter()
+    api.vectorize(p).to_svg()
+    took = time.perf_counter() - t
+    pic = load_picture(p)
+    r = read(pic.astype('float64'))
+    rows.append((p, r.kind, bool(r.polish and max(pic.shape[:2]) <= 128), took))
+print(json.dumps(rows))
+"""
+
+
+def real_breakdown(paths: list[Path]) -> str:
+    """Where a folder of ``paths`` spends its time: each picture vectorized in one process (one
+    after another, the model loaded at the first picture that is polished), summed by what it was
+    read as and whether it was polished through torch."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    out = subprocess.run([sys.executable, "-c", BREAKDOWN, *map(str, paths)], env=env, check=True,
+                         capture_output=True, text=True).stdout
+    groups: dict[str, list[float]] = {}
+    for _, kind, polished, took in json.loads(out.strip().splitlines()[-1]):
+        groups.setdefault(f"{kind}, polished (torch)" if polished else kind, []).append(took)
+    whole = sum(map(sum, groups.values()))
+    lines = ["| read as | pictures | s in one process | share |", "|---|---|---|---|"]
+    lines += [f"| {g} | {len(t)} | {sum(t):.2f} | {sum(t) / whole:.0%} |"
+              for g, t in sorted(groups.items(), key=lambda kv: -sum(kv[1]))]
+    return "\n".join(lines + [f"| all | {len(paths)} | {whole:.2f} | 100% |"])
+
+
 def kinds(paths: list[Path], per_kind: int) -> list[Path]:
     """``per_kind`` pictures of each kind (the name's first word), for the one-call rows."""
     out, count = [], {}
@@ -274,7 +311,9 @@ def main() -> None:
                  f"`python -c 'import torch'`: {torch_only:.2f} s ({glyph / torch_only:.2f}x)")
     notes.append(f"- `--no-refine` of one 64 px glyph once the model is loaded: {no_refine * 1000:.0f} ms")
     logo = next(p for p in real if "512" in p.name)
-    text = report(rows, notes, f"Where one call's time goes: `vectorize {logo.name}`, one process:\n\n"
+    text = report(rows, notes, f"Where the real folder's time goes: each of its pictures in one process, one "
+                  f"after another (the folder row runs them on the workers `plan_workers` picks):\n\n"
+                  f"{real_breakdown(real)}\n\nWhere one call's time goes: `vectorize {logo.name}`, one process:\n\n"
                   + profile(logo))
     print(text)
     if args.markdown:

@@ -87,10 +87,11 @@ def merged(ids: np.ndarray, n: int, values: np.ndarray, min_px: int) -> tuple[np
         if not small.any():
             break
         mean = _means(ids, n, values)
-        a = np.concatenate([ids[:, 1:].ravel(), ids[1:].ravel()])
-        b = np.concatenate([ids[:, :-1].ravel(), ids[:-1].ravel()])
+        across, down = ids[:, 1:] != ids[:, :-1], ids[1:] != ids[:-1]  # where two pieces touch
+        a = np.concatenate([ids[:, 1:][across], ids[1:][down]])
+        b = np.concatenate([ids[:, :-1][across], ids[:-1][down]])
         a, b = np.concatenate([a, b]), np.concatenate([b, a])  # each touching pair both ways
-        keep = (a != b) & small[a]
+        keep = small[a]
         if not keep.any():
             break
         a, b = a[keep], b[keep]
