@@ -186,12 +186,8 @@ def fit_runs(runs: list[tuple[np.ndarray, np.ndarray, np.ndarray]], tol: float) 
     runs_, firsts, ctrls = (np.concatenate(a) for a in zip(*done))
     order = np.lexsort((firsts, runs_))  # along each run: a piece's halves split it at a later point
     ctrls = list(ctrls[order])
-    return [ctrls[a:b] for a, b in zip(*_bounds(np.bincount(runs_, minlength=len(runs))))]
-
-
-def _bounds(counts: np.ndarray) -> tuple[list[int], list[int]]:
-    ends = np.cumsum(counts)
-    return (ends - counts).tolist(), ends.tolist()
+    ends = np.cumsum(np.bincount(runs_, minlength=len(runs))).tolist()
+    return [ctrls[a:b] for a, b in zip([0, *ends[:-1]], ends)]
 
 
 def _halves(pts: np.ndarray, which: np.ndarray, at: np.ndarray, run, first, n, t0, t1, depth) -> tuple:
@@ -244,11 +240,6 @@ def _fit_block(pts: np.ndarray, first: np.ndarray, n: np.ndarray, t0: np.ndarray
     ctrl, u = fit_cubics(padded, mask, u, t0, t1, 4)
     err = np.where(mask, np.hypot(*np.moveaxis(cubics_at(ctrl, u) - padded, -1, 0)), -np.inf)  # (R, L)
     return ctrl, err.max(1), err.argmax(1)
-
-
-def fit_run(pts: np.ndarray, t0: np.ndarray, t1: np.ndarray, tol: float) -> list[np.ndarray]:
-    """``fit_runs`` of one run."""
-    return fit_runs([(pts, t0, t1)], tol)[0]
 
 
 class _Rings:
