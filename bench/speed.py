@@ -312,7 +312,8 @@ def main() -> None:
     notes.append(f"- `--no-refine` of one 64 px glyph once the model is loaded: {no_refine * 1000:.0f} ms")
     logo = next(p for p in real if "512" in p.name)
     text = report(rows, notes, f"Where the real folder's time goes: each of its pictures in one process, one "
-                  f"after another (the folder row runs them on the workers `plan_workers` picks):\n\n"
+                  f"after another (the folder row runs them on the workers `plan_workers` picks; the first "
+                  f"picture polished imports torch and loads the model, about 1.5 s):\n\n"
                   f"{real_breakdown(real)}\n\nWhere one call's time goes: `vectorize {logo.name}`, one process:\n\n"
                   + profile(logo))
     print(text)
