@@ -186,6 +186,8 @@ STAGES = [  # (what, the function whose cumulative time it is)
     ("read the picture (its kind, the clean picture)", "read.py:read"),
     ("regions traced", "regions.py:trace"),
     ("  of which the palette (colour pictures)", "palette.py:quantize"),
+    ("  of which a photo's pieces cut", "photo.py:pieces"),
+    ("  of which each piece's outline (edge field, reach, level set)", "regions.py:_stacked_regions"),
     ("rings fitted with cubics", "fit.py:fit_rings"),
     ("crossings untangled", "untangle.py:untangle"),
     ("SVG written", "svg.py:to_svg"),
@@ -311,11 +313,12 @@ def main() -> None:
                  f"`python -c 'import torch'`: {torch_only:.2f} s ({glyph / torch_only:.2f}x)")
     notes.append(f"- `--no-refine` of one 64 px glyph once the model is loaded: {no_refine * 1000:.0f} ms")
     logo = next(p for p in real if "512" in p.name)
+    photo = next(p for p in real if p.name == "skimage-coffee.png")
     text = report(rows, notes, f"Where the real folder's time goes: each of its pictures in one process, one "
                   f"after another (the folder row runs them on the workers `plan_workers` picks; the first "
                   f"picture polished imports torch and loads the model, about 1.5 s):\n\n"
                   f"{real_breakdown(real)}\n\nWhere one call's time goes: `vectorize {logo.name}`, one process:\n\n"
-                  + profile(logo))
+                  + profile(logo) + f"\n\nAnd a photo's, `vectorize {photo.name}`:\n\n" + profile(photo))
     print(text)
     if args.markdown:
         write_section(args.markdown, text)
