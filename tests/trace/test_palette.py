@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import collections
+
 import numpy as np
 
 from im2vec_cli.trace.palette import posterize, quantize
@@ -99,7 +101,7 @@ def test_quantize_keeps_its_last_results(monkeypatch):
     calls = []
     real = palette._quantize
     monkeypatch.setattr(palette, "_quantize", lambda *a, **k: calls.append(1) or real(*a, **k))
-    monkeypatch.setattr(palette, "_kept", [])
+    monkeypatch.setattr(palette, "_kept", collections.deque(maxlen=palette.KEPT))
     pic = np.random.default_rng(3).random((24, 24, 3))
     p1, l1 = quantize(pic, None)
     l1[:] = -1

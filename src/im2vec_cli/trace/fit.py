@@ -57,9 +57,10 @@ def sharpen(pts: np.ndarray, idx: np.ndarray, near: float = 1.0, far: float = 3.
     return _Rings([pts]).sharpened(np.asarray(idx, dtype=np.int64), near, far, reach, step)
 
 
-def _unit(v: np.ndarray) -> np.ndarray:
-    n = np.hypot(*v)
-    return v / n if n > 1e-12 else v
+def _units(v: np.ndarray) -> np.ndarray:
+    """Each row of ``v (N, 2)`` scaled to length 1 (a row shorter than 1e-12 as it is)."""
+    norm = np.hypot(*v.T)[:, None]
+    return np.where(norm > 1e-12, v / np.where(norm > 1e-12, norm, 1), v)
 
 
 def fit_cubics(pts: np.ndarray, mask: np.ndarray, u: np.ndarray, t0: np.ndarray, t1: np.ndarray, iterations: int
@@ -196,9 +197,7 @@ def _halves(pts: np.ndarray, which: np.ndarray, at: np.ndarray, run, first, n, t
     before and after it): the halves' ``(run, first, n, t0, t1, depth)``, each piece's first
     half then its second, in the pieces' order."""
     i = np.minimum(np.maximum(at, 2), n[which] - 3)  # (a piece of 4 points: 1)
-    v = pts[first[which] + i + 2] - pts[first[which] + (i - 2) % n[which]]  # (from its last point then)
-    norm = np.hypot(*v.T)[:, None]
-    tc = np.where(norm > 1e-12, v / np.where(norm > 1e-12, norm, 1), v)  # _unit of each
+    tc = _units(pts[first[which] + i + 2] - pts[first[which] + (i - 2) % n[which]])  # (from its last point then)
     pair = (lambda a, b: np.stack([a, b], 1).reshape(-1, *np.shape(a)[1:]))  # a0 b0 a1 b1 ...
     return (pair(run[which], run[which]), pair(first[which], first[which] + i), pair(i + 1, n[which] - i),
             pair(t0[which], tc), pair(-tc, t1[which]), pair(depth[which] + 1, depth[which] + 1))
@@ -317,7 +316,7 @@ def _plans(rings: list[np.ndarray]) -> list[list[tuple[np.ndarray, np.ndarray, n
         first, n = int(rs.starts[r]), int(rs.size[r])
         start = int(np.argmax(turn2[first : first + n]))
         loop = rs.pts[first + (start + np.arange(n + 1)) % n]
-        t = _unit(loop[2] - loop[-3])
+        t = _units((loop[2] - loop[-3])[None])[0]
         plans.append([(loop, t, -t, False)])
     return plans
 
@@ -342,9 +341,7 @@ def _cut(rs: _Rings, found: list[list[int]], pts: np.ndarray) -> list[tuple[np.n
         total = pts[idx[end + sign]]
         for k in range(2, int(reach.max()) + 1):
             total = np.where((reach >= k)[:, None], total + pts[idx[np.where(reach >= k, end + sign * k, end)]], total)
-        v = total / reach[:, None] - pts[idx[end]]
-        norm = np.hypot(*v.T)
-        tangents.append(np.where((norm > 1e-12)[:, None], v / np.where(norm > 1e-12, norm, 1)[:, None], v))
+        tangents.append(_units(total / reach[:, None] - pts[idx[end]]))
     parts = np.split(pts[idx], np.cumsum(length)[:-1])
     return [(p, t0, t1, True) for p, t0, t1 in zip(parts, *tangents)]
 

@@ -175,6 +175,11 @@ def spread3(a: np.ndarray) -> np.ndarray:
     return np.maximum(np.maximum(x, y), z) - np.minimum(np.minimum(x, y), z)
 
 
+def rgb_keys(q: np.ndarray) -> np.ndarray:
+    """One int64 a colour: the 8-bit channels ``q (..., 3)`` (integers 0-255) packed, red highest."""
+    return (q[..., 0] << 16) | (q[..., 1] << 8) | q[..., 2]
+
+
 def norm3(a: np.ndarray) -> np.ndarray:
     """``np.linalg.norm(a, axis=-1)`` of ``(..., 3)``, bit for bit (the squares summed in the same
     order), on whole channels: 2-4x faster than NumPy's reduction over a last axis of 3."""

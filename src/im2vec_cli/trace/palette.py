@@ -10,9 +10,11 @@ Frame: ``(H, W, 3)`` arrays in [0, 1], labels ``(H, W)``.
 
 from __future__ import annotations
 
+import collections
+
 import numpy as np
 
-from .ndops import norm3
+from .ndops import norm3, rgb_keys
 
 MAX_HARD_COLORS = 64  # a picture of at most this many exact colours (and at least 3)...
 MAX_HARD_SIDE = 512  # ...no larger than this is hard-edged: traced along its pixel edges
@@ -30,7 +32,7 @@ def hard_palette(image: np.ndarray, pixel: bool = False) -> tuple[np.ndarray, np
     if max(image.shape[:2]) > MAX_HARD_SIDE and not pixel:
         return None
     q = np.round(image * 255).astype(np.int64)
-    keys = ((q[..., 0] << 16) | (q[..., 1] << 8) | q[..., 2]).ravel()
+    keys = rgb_keys(q).ravel()
     sample = np.unique(keys[:: max(1, len(keys) // 4096)])
     if len(sample) > MAX_HARD_COLORS:  # most pictures: a sample says no
         return None
@@ -71,7 +73,8 @@ def _blends(q: np.ndarray) -> int:
 
 
 KEPT = 2  # ``quantize`` keeps its last results: ``read.read`` judges a drawing by its palette (``photo.agrees_better``)
-_kept: list = []  # and the trace then quantises the same picture again (0.17 s of a 512 px icon's 0.65)
+_kept: collections.deque = collections.deque(maxlen=KEPT)  # and the trace then quantises the same picture again
+# (0.17 s of a 512 px icon's 0.65)
 
 
 def quantize(image: np.ndarray, colors: int | None, seed: int = 0, max_colors: int = 16,
@@ -84,8 +87,7 @@ def quantize(image: np.ndarray, colors: int | None, seed: int = 0, max_colors: i
     got = next((r for a, kept, r in _kept if a == args and np.array_equal(kept, raw)), None)
     if got is None:
         got = _quantize(image, colors, seed, max_colors, flat_mse)
-        _kept[: max(0, len(_kept) - KEPT + 1)] = []
-        _kept.append((args, raw.copy(), got))
+        _kept.append((args, raw.copy(), got))  # (the oldest pushed out)
     return got[0].copy(), got[1].copy()
 
 
@@ -110,8 +112,7 @@ def _quantize(image: np.ndarray, colors: int | None, seed: int = 0, max_colors: 
     rng = np.random.default_rng(seed)
     if len(pool) > 20000:
         pool = pool[rng.choice(len(pool), 20000, replace=False)]
-    q = np.round(pool * 255).astype(np.int64)  # distinct 8-bit colours: packed, as np.unique(axis=0) counts them
-    unique = len(np.unique((q[:, 0] << 16) | (q[:, 1] << 8) | q[:, 2]))
+    unique = len(np.unique(rgb_keys(np.round(pool * 255).astype(np.int64))))  # distinct 8-bit colours
     ks = [min(colors, unique)] if colors else range(1, min(max_colors, unique) + 1)
     for k in ks:
         centres, lab = kmeans(pool, k, rng, 20)

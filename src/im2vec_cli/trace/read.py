@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..options import PRESETS
-from .ndops import gaussian, mean3, norm3, spread3
+from .ndops import gaussian, mean3, norm3, rgb_keys, spread3
 from .palette import MAX_HARD_COLORS, hard_palette
 from .photo import AGREE_PIXELS, PHOTO_SIGMA, agrees_better, looks_like_a_photo
 from .regions import background_color, two_tone
@@ -198,8 +198,7 @@ def _native_pixel_art(picture: np.ndarray, labels: np.ndarray) -> bool:
 def edge_share(picture: np.ndarray) -> float:
     """The share of the pixels of ``picture (H, W, 3)`` whose 8-bit colour differs from the pixel
     above or to their left."""
-    q = np.round(picture * 255).astype(np.int64)
-    keys = (q[..., 0] << 16) | (q[..., 1] << 8) | q[..., 2]
+    keys = rgb_keys(np.round(picture * 255).astype(np.int64))
     edge = np.zeros(keys.shape, dtype=bool)
     edge[1:] |= keys[1:] != keys[:-1]
     edge[:, 1:] |= keys[:, 1:] != keys[:, :-1]
@@ -225,7 +224,7 @@ def pixel_block(picture: np.ndarray) -> int:
     greatest common divisor of the rows and columns at which the colours change."""
     h, w, _ = picture.shape
     sample = np.round(picture[:: max(1, h // 64), :: max(1, w // 64)] * 255).astype(np.int64)
-    if len(np.unique((sample[..., 0] << 16) | (sample[..., 1] << 8) | sample[..., 2])) > MAX_HARD_COLORS:
+    if len(np.unique(rgb_keys(sample))) > MAX_HARD_COLORS:
         return 1  # more colours than pixel art has (most pictures: a sample says so)
     q = np.round(picture * 255).astype(np.uint8)
     rows = np.nonzero((q[1:] != q[:-1]).any((1, 2)))[0] + 1
@@ -235,9 +234,7 @@ def pixel_block(picture: np.ndarray) -> int:
     block = int(np.gcd.reduce(np.concatenate([rows, cols, [h, w]])))
     if block < 2:
         return 1
-    small = q[::block, ::block].astype(np.int64)
-    keys = (small[..., 0] << 16) | (small[..., 1] << 8) | small[..., 2]
-    if len(np.unique(keys)) > MAX_HARD_COLORS:
+    if len(np.unique(rgb_keys(q[::block, ::block].astype(np.int64)))) > MAX_HARD_COLORS:
         return 1
     return block
 
