@@ -114,3 +114,68 @@ def test_quantize_keeps_its_last_results(monkeypatch):
     pic[5, 5, 1] += 0.5  # the picture changed where it was kept from: quantised anew
     quantize(pic, None)
     assert len(calls) == 5
+
+
+def test_two_fills_of_near_colours_keep_a_colour_each():
+    """A card (248, 245, 245) covering a third of a white picture, with red pips: one colour
+    between the two meets the flat pixels' mean squared error, but both are exact fills of large
+    areas, farther apart than ``FILL_TIE``: each keeps its own colour, and the card is labelled apart
+    from the background (issue 69: the cards of a diagram vanished into the white)."""
+    pic = np.ones((120, 160, 3))
+    card = (248 / 255, 245 / 255, 245 / 255)
+    pic[20:100, 40:100] = card
+    pic[40:50, 60:70] = (0.88, 0.07, 0.07)
+    palette, labels = quantize(pic, None)
+    assert _nearest(palette, card) < 0.005 and _nearest(palette, (1, 1, 1)) < 0.005
+    assert np.linalg.norm(palette[labels[25:95, 45:55]] - card, axis=-1).max() < 0.005
+    assert np.linalg.norm(palette[labels[:15]] - 1, axis=-1).max() < 0.005
+
+
+def test_a_shaded_ramp_of_exact_colours_stays_one_colour():
+    """A grey ramp of exact 8-bit levels one apart (each a fill by its share) is one chain of fills
+    within ``FILL_TIE`` of each other: not cut into a colour a level."""
+    pic = np.ones((64, 160, 3))
+    pic[:, 40:120] = (np.round(np.linspace(132, 141, 80)) / 255)[None, :, None]
+    palette, _ = quantize(pic, None)
+    assert sum(float(np.abs(c - 136.5 / 255).max()) < 0.03 for c in palette) == 1
+
+
+def _hairline_picture(width: float, ink: float) -> tuple[np.ndarray, np.ndarray]:
+    """A white picture of 160 px (larger than the polish's, where the crest rule runs), a square of
+    grey ``ink`` (a palette colour) and a line of it ``width`` px wide from (4, 10) to (110, 40) (x, y),
+    its coverage of each pixel exact to 1/64 (8 x 8 samples); and the pixels it covers by 0.3 or more."""
+    s = (np.arange(160 * 8) + 0.5) / 8
+    yy, xx = np.meshgrid(s, s, indexing="ij")
+    (x0, y0), (x1, y1) = (4, 10), (110, 40)
+    dx, dy = x1 - x0, y1 - y0
+    t = np.clip(((xx - x0) * dx + (yy - y0) * dy) / (dx * dx + dy * dy), 0, 1)
+    inside = np.hypot(xx - x0 - t * dx, yy - y0 - t * dy) <= width / 2
+    cover = inside.reshape(160, 8, 160, 8).mean((1, 3))
+    pic = np.repeat((1 - cover * (1 - ink))[..., None], 3, -1)
+    pic[120:150, 120:150] = ink
+    return pic, cover >= 0.3
+
+
+def test_a_line_thinner_than_a_pixel_is_kept_whole():
+    """A grey line 0.9 px wide (a card's outline drawn at an angle) holds less grey than white wherever
+    it falls across two pixels, so the larger share breaks it into dashes: each such pixel is the crest
+    of a grey line across it (``RIDGE_T``) and is labelled grey, and the line is one piece end to end."""
+    from im2vec_cli.trace.ndops import label
+
+    pic, line = _hairline_picture(0.9, 0.5)
+    palette, labels = quantize(pic, None)
+    grey = labels == int(np.argmin(np.linalg.norm(palette - 0.5, axis=1)))
+    assert grey[line].mean() > 0.9
+    pieces, _ = label(grey, eight=True)
+    assert len(np.unique(pieces[line])) == 1
+
+
+def test_an_anti_aliased_edge_keeps_its_weight():
+    """A black square whose edge column is 40% black: that column's pixels have black on one side, so
+    they are no crest of a line, and take white as before (the shape is not made heavier)."""
+    pic = np.ones((160, 160, 3))
+    pic[40:120, 40:100] = 0.0
+    pic[40:120, 100] = 0.6
+    palette, labels = quantize(pic, None)
+    black = int(np.argmin(np.linalg.norm(palette, axis=1)))
+    assert (labels[44:116, 100] != black).all() and (labels[44:116, 44:100] == black).all()

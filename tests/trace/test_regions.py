@@ -131,3 +131,23 @@ def test_a_piece_reaches_under_a_stroke_to_its_middle_never_to_its_far_side():
     wide = cols >= 10
     assert np.array_equal(np.unique(cols[_hidden_reach(left, wide)]), np.arange(10, 10 + HIDDEN_REACH))
     assert not _hidden_reach(left, np.zeros_like(left)).any()
+
+
+def test_a_white_panel_on_a_grey_canvas_is_drawn_white():
+    """A screenshot whose border is grey (the canvas the SVG is drawn on) with a white panel along its
+    top edge: the white around a picture is left to the canvas only where the canvas is white (issue
+    69: the panel came out the canvas's grey). Rendered by cairosvg, the panel is white again."""
+    from im2vec_cli.trace.ndops import gaussian
+    from im2vec_cli.trace.outline import traced
+    from im2vec_cli.vector import rasterize_svg
+
+    pic = np.full((96, 160, 3), 0.9)
+    pic[:40] = 1.0  # the panel, touching the top, left and right edges
+    pic[60:80, 20:60] = (0.15, 0.35, 0.85)
+    pic[12:22, 30:130] = 0.05  # a bar on the panel
+    pic = gaussian(pic, 0.7)  # anti-aliased: quantised, not taken for a hard-edged picture
+    vec, _, exact = traced(pic, 0.5)
+    assert not exact
+    out = rasterize_svg(vec.to_svg(), 160, 96)
+    assert np.abs(out[2:10, 5:155] - 1.0).max() < 0.02 and np.abs(out[85:94, 5:155] - 0.9).max() < 0.02
+    assert np.abs(out[64:76, 24:56] - (0.15, 0.35, 0.85)).max() < 0.02

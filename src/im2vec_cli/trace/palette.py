@@ -123,12 +123,16 @@ def _quantize(image: np.ndarray, colors: int | None, seed: int = 0, max_colors: 
         if err.mean() <= flat_mse and far.mean() <= FAR_SHARE and not _far_area(pool[far], len(pool)):
             break
     if not colors:
+        split = _split_fills(pool, centres, max_colors)
+        if len(split) > len(centres):  # the flat pixels' error with the fills' own colours
+            centres, err = split, ((pool - split[nearest(pool, split)]) ** 2).sum(-1)
         pixels = image.reshape(-1, 3)
         if len(pixels) > THIN_SAMPLE:  # the colours of thin lines and dots show in a sample too
             pixels = pixels[rng.choice(len(pixels), THIN_SAMPLE, replace=False)]
         centres = _thin_colors(pixels, centres, max_colors)
-    labels = _assign(image, centres, flat)
-    speck = CLEAN_SPECK if err.mean() <= CLEAN_FLAT_MSE else MAX_SPECK  # a clean render's small pieces are its own
+    clean = err.mean() <= CLEAN_FLAT_MSE  # a clean render: its small pieces and its thin lines are its own
+    labels = _assign(image, centres, flat, lines=clean and h * w > MIXES_ON_EDGES)
+    speck = CLEAN_SPECK if clean else MAX_SPECK
     return np.clip(centres, 0, 1), _absorb_specks(labels, max(2, min(h * w // 2000, speck)))
 
 
@@ -160,6 +164,51 @@ THIN_SAMPLE = 65_536  # pixels in which ``_thin_colors`` looks for the colours o
 # picture's worth: at 512 px, 262,144 took 1.9 s of a logo's 4; bench/realworld.py)
 
 
+FILL_SHARE = 0.02  # an exact 8-bit colour of at least this share of the flat pixels (and FILL_MIN of them) is a fill...
+FILL_MIN = 64
+FILL_TIE = 0.03  # ...and fills farther apart than this (RGB distance, chained) are two: a card's (248, 245, 245) on
+# white keeps its colour, where k-means met the mean squared error with one colour between the two; a shaded
+# ramp of exact greys one level apart stays one colour
+
+
+def _split_fills(pool: np.ndarray, centres: np.ndarray, max_colors: int) -> np.ndarray:
+    """``centres (K, 3)`` with each colour that stands for two or more fills of the flat pixels ``pool``
+    (``FILL_SHARE``, ``FILL_TIE``) replaced by those fills, each the mean of its exact colours (at most
+    ``max_colors`` colours in all)."""
+    from .ndops import nearest
+
+    keys, counts = np.unique(rgb_keys(np.round(pool * 255).astype(np.int64)), return_counts=True)
+    fill = counts >= max(FILL_SHARE * len(pool), FILL_MIN)
+    keys, counts = keys[fill], counts[fill]
+    if len(keys) < 2:
+        return centres
+    fills = np.stack([keys >> 16, (keys >> 8) & 255, keys & 255], 1) / 255
+    owner = nearest(fills, centres)
+    out = []
+    for i, centre in enumerate(centres):
+        mine, weight = fills[owner == i], counts[owner == i]
+        groups = _chained(mine, FILL_TIE) if len(mine) > 1 else np.zeros(len(mine), dtype=np.int64)
+        if len(mine) < 2 or groups.max() < 1 or len(out) + groups.max() + len(centres) - i > max_colors:
+            out.append(centre)  # one fill (or none): k-means' colour
+            continue
+        out.extend((mine[groups == g] * weight[groups == g, None]).sum(0) / weight[groups == g].sum()
+                   for g in range(groups.max() + 1))
+    return np.array(out)
+
+
+def _chained(colours: np.ndarray, tie: float) -> np.ndarray:
+    """``(N,)`` group of each of ``colours (N, 3)``, 0.. in order of first member: colours within ``tie`` of
+    each other are one group, and so are chains of them (single linkage)."""
+    link = np.sqrt(((colours[:, None] - colours[None]) ** 2).sum(-1)) <= tie  # (N, N), N <= 1 / FILL_SHARE
+    while True:
+        wider = (link.astype(np.int64) @ link.astype(np.int64)) > 0
+        if np.array_equal(wider, link):
+            break
+        link = wider
+    first = np.argmax(link, 1)  # each colour's group by its first member
+    return np.unique(first, return_inverse=True)[1].reshape(-1)
+
+
 def _far_area(far: np.ndarray, pool: int) -> bool:
     """Whether ``far (N, 3)``, the flat pixels far from every palette colour (at most
     ``FAR_SHARE`` of the ``pool``), hold an area of one colour: ``FAR_AREA`` of them, and
@@ -171,11 +220,12 @@ def _far_area(far: np.ndarray, pool: int) -> bool:
     return bool(((d < FAR_TIE).sum(1) >= need).any())
 
 
-def _assign(image: np.ndarray, palette: np.ndarray, flat: np.ndarray) -> np.ndarray:
+def _assign(image: np.ndarray, palette: np.ndarray, flat: np.ndarray, lines: bool = False) -> np.ndarray:
     """``(H, W)`` labels: each pixel explained as a mix of two palette colours found near it
     (within two pixels: a flat pixel of that colour, or a pixel close to it), and given
     the one it holds more of. An anti-aliased edge between yellow and black is then yellow
-    or black, never a red that happens to lie nearer the mix."""
+    or black, never a red that happens to lie nearer the mix. With ``lines``, a pixel on the crest
+    of a line thinner than a pixel takes the line's colour though it holds less of it (``_ridges``)."""
     from .ndops import distinct, max_filter
 
     h, w, _ = image.shape
@@ -190,15 +240,47 @@ def _assign(image: np.ndarray, palette: np.ndarray, flat: np.ndarray) -> np.ndar
     colours, back = distinct(image[todo])  # nearest colour (the mixes of every pair cost 10 s at 2048 px)
     near = near[todo]
     best = np.full(len(back), np.inf)
-    got = np.zeros(len(back), dtype=np.int64)
+    pair, along = np.zeros((2, len(back)), dtype=np.int64), np.zeros(len(back))
     for i, j, t, r in _mixes(colours, palette):
         t, r = t[back], r[back] + 1e-6 * (i != j)  # ties: one colour
         r[~(near[:, i] & near[:, j])] = np.inf
         better = r < best
         best[better] = r[better]
-        got[better] = np.where(t[better] < 0.5, i, j)
-    labels[todo] = got
+        pair[:, better], along[better] = [[i], [j]], t[better]
+    second = _ridges(image, todo, palette, pair, along, best) if lines else along >= 0.5
+    labels[todo] = np.where(second, pair[1], pair[0])
     return labels
+
+
+RIDGE_T = 0.3  # a pixel at least this far along the mix toward a colour, and no less so than its two
+RIDGE_FIT = 0.02  # (and within this of the mix of the two: a JPEG's edge pixels are off it, its ringing too)
+RIDGE_STEP = 0.1  # neighbours on a line through it (one of them this much less), is on a line of that colour:
+# in a clean render larger than the polish's pictures (``MIXES_ON_EDGES``), whose labels are final. (On the 120
+# OpenMoji faces of bench/outlines.py at 64 px, which the polish fits against their soft edges, it cost a third
+# image with cracks and 3% of MSE at 4x; a JPEG's ringing has crests of its own.)
+
+
+def _ridges(image: np.ndarray, todo: np.ndarray, palette: np.ndarray, pair: np.ndarray, t: np.ndarray,
+            off: np.ndarray) -> np.ndarray:
+    """``(N,)`` bool: whether each pixel of ``todo (H, W)``, a mix ``t`` of the palette colours ``pair (2, N)``
+    ``off`` from it, takes the second colour: where it holds more of it, and where it is the crest of a
+    line of it thinner than a pixel (``RIDGE_T``): a hairline or an outline drawn across a pixel's edge
+    whose every pixel holds less of it than of its surround, and which the larger share would break into
+    dashes or drop. Likewise a pixel that holds more of the second colour is the first's where it is the
+    trough of a thin line of the first (a thin gap kept open)."""
+    h, w, _ = image.shape
+    ys, xs = np.nonzero(todo)
+    a, d = palette[pair[0]], palette[pair[1]] - palette[pair[0]]  # (N, 3)
+    scale = 1 / np.maximum((d * d).sum(-1), 1e-12)
+    crest, trough = np.zeros(len(t), dtype=bool), np.zeros(len(t), dtype=bool)
+    for dy, dx in ((0, 1), (1, 0), (1, 1), (1, -1)):  # a line through the pixel: row, column, diagonals
+        ends = [np.clip(((image[np.clip(ys + s * dy, 0, h - 1), np.clip(xs + s * dx, 0, w - 1)] - a) * d).sum(-1)
+                        * scale, 0, 1) for s in (-1, 1)]
+        lo, hi = np.minimum(*ends), np.maximum(*ends)
+        crest |= (hi <= t) & (lo <= t - RIDGE_STEP)
+        trough |= (lo >= t) & (hi >= t + RIDGE_STEP)
+    line = (pair[0] != pair[1]) & (off <= RIDGE_FIT)  # an exact mix of the two: drawn, not a JPEG's ringing
+    return np.where(t < 0.5, line & crest & (t >= RIDGE_T), ~(line & trough & (t <= 1 - RIDGE_T)))
 
 
 def _mixes(pixels: np.ndarray, palette: np.ndarray):

@@ -157,17 +157,16 @@ def trace(image: np.ndarray, colors: int | None = None, max_regions: int | None 
     """
     image = np.asarray(image, dtype=np.float64)
     bg = background_color(image)
+    white = (1 - bg).max() <= WHITE_TOL  # the canvas is white: white around the picture is left to it
     pixel = kind == "pixel"
     hard = hard_palette(image, pixel) if pixel or (colors is None and kind in ("", "logo")) else None
     if hard is not None:  # exact colours: along the pixel edges, or, read as a logo (a drawing), with curves
         exact = kind != "logo"
         if max_regions is None:  # the back layer covers the canvas, unless white shows around the picture
-            return _layers(*hard, white_around=(1 - bg).max() <= WHITE_TOL, exact=exact)
-        return _with_background(bg, _stacked_regions(image, *hard, max_regions, exact=exact), image.shape, exact=exact)
-    if colors in (None, 1):
-        tone = two_tone(image, bg) if tone is None else tone
-    else:
-        tone = None
+            return _layers(*hard, white_around=white, exact=exact)
+        return _with_background(bg, _stacked_regions(image, *hard, max_regions, white, exact=exact), image.shape,
+                                exact=exact)
+    tone = (two_tone(image, bg) if tone is None else tone) if colors in (None, 1) else None
     if tone is None and colors == 1:
         ink, t = _ink_line(image, bg, 0.8)
         tone = ink, np.clip(t, 0, 1)
@@ -178,9 +177,10 @@ def trace(image: np.ndarray, colors: int | None = None, max_regions: int | None 
         from .photo import pieces
 
         palette, labels = pieces(image, max(speck, 1))
-        return _with_background(bg, _stacked_regions(image, palette, labels, max_regions, each_one=True), image.shape)
+        return _with_background(bg, _stacked_regions(image, palette, labels, max_regions, white, each_one=True),
+                                image.shape)
     palette, labels = posterize(image, colors, seed) if kind == "photo" else quantize(image, colors, seed)
-    return _with_background(bg, _stacked_regions(image, palette, labels, max_regions), image.shape)
+    return _with_background(bg, _stacked_regions(image, palette, labels, max_regions, white), image.shape)
 
 
 ALIAS_SIGMA = 0.7  # px: the blur of a hard-edged drawing's layer masks whose 0.5 level is the curve its staircase draws
@@ -288,11 +288,11 @@ def _grown_box(box: tuple[slice, slice], margin: int, shape) -> tuple[slice, sli
             slice(max(xs.start - margin, 0), min(xs.stop + margin, shape[1])))
 
 
-def _pieces(palette: np.ndarray, labels: np.ndarray, max_regions: int | None, each_one: bool = False
-            ) -> list[tuple[int, int, tuple, np.ndarray, np.ndarray]]:
-    """Connected pieces of each colour but the white around the picture: ``(enclosed area,
-    colour, box, mask, filled)``, the masks within the piece's box (``BOX_MARGIN`` px wider).
-    ``each_one``: every label is one connected piece already (``photo.pieces``)."""
+def _pieces(palette: np.ndarray, labels: np.ndarray, max_regions: int | None, white_canvas: bool,
+            each_one: bool = False) -> list[tuple[int, int, tuple, np.ndarray, np.ndarray]]:
+    """Connected pieces of each colour (but, on a ``white_canvas``, the white around the picture):
+    ``(enclosed area, colour, box, mask, filled)``, the masks within the piece's box (``BOX_MARGIN``
+    px wider). ``each_one``: every label is one connected piece already (``photo.pieces``)."""
     from .ndops import boxes, fill_holes, pieces
 
     if each_one:  # (label map, its number in it, box) of each label k
@@ -301,27 +301,27 @@ def _pieces(palette: np.ndarray, labels: np.ndarray, max_regions: int | None, ea
         found = [[(lab, p, box) for p, box in enumerate(colour_boxes, 1)]
                  for lab, colour_boxes in (pieces(labels == k, eight=True) for k in range(len(palette)))]
     _check_pieces(sum(map(len, found)), f"pieces of {len(palette)} colours", max_regions)
-    out, white = [], _white(palette)  # (once: a photo's palette is a colour a piece, thousands)
+    out, white = [], _white(palette) if white_canvas else -1  # (once: a photo's palette is a colour a piece)
     for k, each in enumerate(found):
         for lab, p, box in each:
             box = _grown_box(box, BOX_MARGIN, labels.shape)
             mask = lab[box] == p
             if k == white and _touches_border(mask, box, labels.shape):
-                continue  # the background: the canvas shows it
+                continue  # the background: the white canvas shows it (a grey one would not: issue 69)
             filled = fill_holes(mask)
             out.append((int(filled.sum()), k, box, mask, filled))
     return out
 
 
 def _stacked_regions(image: np.ndarray, palette: np.ndarray, labels: np.ndarray, max_regions: int | None,
-                     exact: bool = False, each_one: bool = False) -> list[Region]:
-    """Connected pieces of each colour, stacked largest (by enclosed area) at the back, each
-    extended under the pieces above it; neighbouring pieces of one colour share a region.
+                     white_canvas: bool, exact: bool = False, each_one: bool = False) -> list[Region]:
+    """Connected pieces of each colour (``_pieces``), stacked largest (by enclosed area) at the back,
+    each extended under the pieces above it; neighbouring pieces of one colour share a region.
     Each piece is worked out within its box. ``exact``: outlines along the pixel edges
     (``pixel_polygons``), else the sub-pixel 0.5 level of each piece's edge field."""
     from .ndops import dilate
 
-    pieces = sorted(_pieces(palette, labels, max_regions, each_one), key=lambda t: -t[0])
+    pieces = sorted(_pieces(palette, labels, max_regions, white_canvas, each_one), key=lambda t: -t[0])
     if max_regions is not None:
         pieces = pieces[:max_regions]
     above = np.zeros(labels.shape, dtype=bool)
