@@ -179,3 +179,16 @@ def test_an_anti_aliased_edge_keeps_its_weight():
     palette, labels = quantize(pic, None)
     black = int(np.argmin(np.linalg.norm(palette, axis=1)))
     assert (labels[44:116, 100] != black).all() and (labels[44:116, 44:100] == black).all()
+
+
+def test_a_stroke_whose_pixels_meet_at_corners_is_not_specks():
+    """A clean render's stroke a pixel wide drawn at 45 degrees (small text) is a chain of pixels that
+    meet at their corners: 4-connected, each is a speck of one pixel and was absorbed into the page.
+    In a clean render over 128 px specks are counted 8-connected, as regions are: the stroke stays."""
+    pic = np.ones((160, 160, 3))
+    pic[120:150, 120:150] = 0.0  # black is a palette colour
+    idx = np.arange(10, 100)
+    pic[idx, idx] = 0.0
+    palette, labels = quantize(pic, None)
+    black = int(np.argmin(np.linalg.norm(palette, axis=1)))
+    assert (labels[idx, idx] == black).all()

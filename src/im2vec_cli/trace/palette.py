@@ -131,9 +131,10 @@ def _quantize(image: np.ndarray, colors: int | None, seed: int = 0, max_colors: 
             pixels = pixels[rng.choice(len(pixels), THIN_SAMPLE, replace=False)]
         centres = _thin_colors(pixels, centres, max_colors)
     clean = err.mean() <= CLEAN_FLAT_MSE  # a clean render: its small pieces and its thin lines are its own
-    labels = _assign(image, centres, flat, lines=clean and h * w > MIXES_ON_EDGES)
+    lines = clean and h * w > MIXES_ON_EDGES
+    labels = _assign(image, centres, flat, lines=lines)
     speck = CLEAN_SPECK if clean else MAX_SPECK
-    return np.clip(centres, 0, 1), _absorb_specks(labels, max(2, min(h * w // 2000, speck)))
+    return np.clip(centres, 0, 1), _absorb_specks(labels, max(2, min(h * w // 2000, speck)), eight=lines)
 
 
 PHOTO_SPECK = 2e-4  # a photo's pieces smaller than this share of its pixels are absorbed (52 px at 512 px)
@@ -338,10 +339,12 @@ MIXES_ON_EDGES = 128 * 128  # pictures of more pixels (not polished: options.Pla
 FLAT_BY_LEVELS = 512 * 512  # pictures of more pixels find their flat pixels on 8-bit levels
 
 
-def _absorb_specks(labels: np.ndarray, min_px: int) -> np.ndarray:
-    """Connected pieces (4-connected) smaller than ``min_px`` pixels take the commonest label
-    of the pixels around them (their 4-neighbours of another colour). The specks of one colour
-    never touch each other, so all of them are absorbed at once, colour by colour."""
+def _absorb_specks(labels: np.ndarray, min_px: int, eight: bool = False) -> np.ndarray:
+    """Connected pieces (4-connected; ``eight``: 8-connected, as regions are, so that a clean render's
+    stroke a pixel wide, whose pixels meet at corners, is one piece and not specks) smaller than
+    ``min_px`` pixels take the commonest label of the pixels around them (their 4-neighbours of
+    another colour). The specks of one colour never touch each other, so all of them are absorbed
+    at once, colour by colour."""
     from .ndops import label
 
     labels = labels.copy()
@@ -350,7 +353,7 @@ def _absorb_specks(labels: np.ndarray, min_px: int) -> np.ndarray:
     shifts = [(np.s_[1:, :], np.s_[:-1, :]), (np.s_[:-1, :], np.s_[1:, :]),
               (np.s_[:, 1:], np.s_[:, :-1]), (np.s_[:, :-1], np.s_[:, 1:])]
     for k in np.unique(labels):
-        pieces, n = label(labels == k)
+        pieces, n = label(labels == k, eight)
         small = np.bincount(pieces.ravel(), minlength=n + 1) < min_px
         small[0] = False
         if not small.any():
