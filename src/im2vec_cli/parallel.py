@@ -21,7 +21,7 @@ from concurrent.futures.process import BrokenProcessPool
 
 from .errors import OptionWarning
 from .events import WorkerDied
-from .options import VectorizeOptions
+from .options import Plan, VectorizeOptions
 
 _state: dict = {}
 TRACE_IMPORTS = ["cv2", "contourpy", "pathops", "numpy.ma", "xml.etree.ElementTree", "PIL.PngImagePlugin",
@@ -180,7 +180,7 @@ def plan_workers(options: VectorizeOptions, sides: list[tuple[int, int] | None],
     workers, so ``-j`` changes no SVG. ``sides``: the ``(W, H)`` of some of them (``None`` where
     unknown)."""
     s = options.resolve()
-    side = _batch_side(options)
+    side = _batch_side(s)
     batched = not s.refine and s.parts == "model"  # one forward pass: a pool only slows it down
     known = [sz or (512, 512) for sz in sides] or [(512, 512)]  # a size unknown: a 512 px picture's
     needs = [side is None or max(sz) <= side for sz in known]  # which need the model
@@ -193,10 +193,10 @@ def plan_workers(options: VectorizeOptions, sides: list[tuple[int, int] | None],
     return min(jobs, -(-count // chunk)), chunk, heavy  # (chunks whatever the workers: the same SVGs for any -j)
 
 
-def _batch_side(options: VectorizeOptions) -> int | None:
-    """The longest side of a picture that the refinement may batch with others (the polish's; 0: none
-    is polished), or ``None`` where every picture may be (the model's own paths, or no refinement)."""
-    s = options.resolve()
+def _batch_side(s: Plan) -> int | None:
+    """The longest side of a picture that the refinement of plan ``s`` may batch with others (the
+    polish's; 0: none is polished), or ``None`` where every picture may be (the model's own paths, or
+    no refinement)."""
     return (s.max_side if s.polish else 0) if s.refine and s.parts == "clean" else None
 
 
@@ -205,7 +205,7 @@ def batch_groups(options: VectorizeOptions, sides: list[tuple[int, ...]]) -> lis
     apart: those the refinement may batch together (``_batch_side``) as one group, in order, and
     each other picture alone, as it is traced alone anyway. Each SVG is the one the whole chunk
     gives; a folder's large pictures (its photos) spread over the workers, not three to one."""
-    side = _batch_side(options)
+    side = _batch_side(options.resolve())
     if side is None:
         return [list(range(len(sides)))] if sides else []
     together = [i for i, hw in enumerate(sides) if max(hw[:2]) <= side]

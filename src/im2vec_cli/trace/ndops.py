@@ -180,6 +180,11 @@ def rgb_keys(q: np.ndarray) -> np.ndarray:
     return (q[..., 0] << 16) | (q[..., 1] << 8) | q[..., 2]
 
 
+def rgb_of_keys(keys: np.ndarray) -> np.ndarray:
+    """``rgb_keys`` undone: the colours ``(..., 3)`` in [0, 1] of packed 8-bit ``keys``."""
+    return np.stack([keys >> 16, (keys >> 8) & 255, keys & 255], -1) / 255
+
+
 def norm3(a: np.ndarray) -> np.ndarray:
     """``np.linalg.norm(a, axis=-1)`` of ``(..., 3)``, bit for bit (the squares summed in the same
     order), on whole channels: 2-4x faster than NumPy's reduction over a last axis of 3."""

@@ -14,7 +14,7 @@ import collections
 
 import numpy as np
 
-from .ndops import norm3, rgb_keys
+from .ndops import norm3, rgb_keys, rgb_of_keys
 
 MAX_HARD_COLORS = 64  # a picture of at most this many exact colours (and at least 3)...
 MAX_HARD_SIDE = 512  # ...no larger than this is hard-edged: traced along its pixel edges
@@ -50,8 +50,7 @@ def hard_palette(image: np.ndarray, pixel: bool = False) -> tuple[np.ndarray, np
         return None
     if not pixel and (len(values) < 3 or _blends(q) > max(2, MAX_BLENDS * len(keys))):
         return None
-    palette = np.stack([values >> 16, (values >> 8) & 255, values & 255], 1) / 255
-    return palette, inverse.reshape(image.shape[:2])
+    return rgb_of_keys(values), inverse.reshape(image.shape[:2])
 
 
 MAX_BLENDS = 5e-4  # share of pixels that may look anti-aliased in a hard-edged picture
@@ -112,7 +111,8 @@ def _quantize(image: np.ndarray, colors: int | None, seed: int = 0, max_colors: 
     rng = np.random.default_rng(seed)
     if len(pool) > 20000:
         pool = pool[rng.choice(len(pool), 20000, replace=False)]
-    unique = len(np.unique(rgb_keys(np.round(pool * 255).astype(np.int64))))  # distinct 8-bit colours
+    keys, counts = np.unique(rgb_keys(np.round(pool * 255).astype(np.int64)), return_counts=True)  # 8-bit colours
+    unique = len(keys)
     ks = [min(colors, unique)] if colors else range(1, min(max_colors, unique) + 1)
     for k in ks:
         centres, lab = kmeans(pool, k, rng, 20)
@@ -123,7 +123,7 @@ def _quantize(image: np.ndarray, colors: int | None, seed: int = 0, max_colors: 
         if err.mean() <= flat_mse and far.mean() <= FAR_SHARE and not _far_area(pool[far], len(pool)):
             break
     if not colors:
-        split = _split_fills(pool, centres, max_colors)
+        split = _split_fills(keys, counts, centres, max_colors)
         if len(split) > len(centres):  # the flat pixels' error with the fills' own colours
             centres, err = split, ((pool - split[nearest(pool, split)]) ** 2).sum(-1)
         pixels = image.reshape(-1, 3)
@@ -172,34 +172,35 @@ FILL_TIE = 0.03  # ...and fills farther apart than this (RGB distance, chained) 
 # ramp of exact greys one level apart stays one colour
 
 
-def _split_fills(pool: np.ndarray, centres: np.ndarray, max_colors: int) -> np.ndarray:
-    """``centres (K, 3)`` with each colour that stands for two or more fills of the flat pixels ``pool``
-    (``FILL_SHARE``, ``FILL_TIE``) replaced by those fills, each the mean of its exact colours (at most
-    ``max_colors`` colours in all)."""
+def _split_fills(keys: np.ndarray, counts: np.ndarray, centres: np.ndarray, max_colors: int) -> np.ndarray:
+    """``centres (K, 3)`` with each colour that stands for two or more fills of the flat pixels (their
+    distinct 8-bit colours ``keys``, ``rgb_keys``, each ``counts`` of them; ``FILL_SHARE``, ``FILL_TIE``)
+    replaced by those fills, each the mean of its exact colours (at most ``max_colors`` colours in all)."""
     from .ndops import nearest
 
-    keys, counts = np.unique(rgb_keys(np.round(pool * 255).astype(np.int64)), return_counts=True)
-    fill = counts >= max(FILL_SHARE * len(pool), FILL_MIN)
-    keys, counts = keys[fill], counts[fill]
-    if len(keys) < 2:
+    fill = counts >= max(FILL_SHARE * counts.sum(), FILL_MIN)
+    fills, counts = rgb_of_keys(keys[fill]), counts[fill]
+    if len(fills) < 2:
         return centres
-    fills = np.stack([keys >> 16, (keys >> 8) & 255, keys & 255], 1) / 255
     owner = nearest(fills, centres)
     out = []
     for i, centre in enumerate(centres):
         mine, weight = fills[owner == i], counts[owner == i]
-        groups = _chained(mine, FILL_TIE) if len(mine) > 1 else np.zeros(len(mine), dtype=np.int64)
-        if len(mine) < 2 or groups.max() < 1 or len(out) + groups.max() + len(centres) - i > max_colors:
+        groups = _chained(mine, FILL_TIE)
+        n = groups.max(initial=-1) + 1
+        if n < 2 or len(out) + n + len(centres) - i - 1 > max_colors:
             out.append(centre)  # one fill (or none): k-means' colour
             continue
         out.extend((mine[groups == g] * weight[groups == g, None]).sum(0) / weight[groups == g].sum()
-                   for g in range(groups.max() + 1))
+                   for g in range(n))
     return np.array(out)
 
 
 def _chained(colours: np.ndarray, tie: float) -> np.ndarray:
     """``(N,)`` group of each of ``colours (N, 3)``, 0.. in order of first member: colours within ``tie`` of
     each other are one group, and so are chains of them (single linkage)."""
+    if len(colours) < 2:
+        return np.zeros(len(colours), dtype=np.int64)
     link = np.sqrt(((colours[:, None] - colours[None]) ** 2).sum(-1)) <= tie  # (N, N), N <= 1 / FILL_SHARE
     while True:
         wider = (link.astype(np.int64) @ link.astype(np.int64)) > 0
