@@ -195,6 +195,41 @@ def test_shaded_paper_along_the_ink_line_is_a_scan():
     assert np.median(r.picture[gaussian_filter(ink.astype(float), 1) > 0.99]) < 0.05  # stay grey), black ink
 
 
+def test_a_dim_grey_photo_of_dark_lines_keeps_its_grey():
+    """scikit-image's retina crop (dark vessels on mid-grey, 102 px): ink on paper by its colours,
+    but its "paper" is 0.4 grey. Read as a page, it came out white (MSE 0.34); it stays grey."""
+    import skimage.data
+
+    pic = np.repeat(skimage.data.microaneurysms()[..., None] / 255.0, 3, -1)
+    r = read(pic)
+    assert r.kind not in ("scan", "line")
+    assert abs(np.median(r.picture) - np.median(pic)) < 0.05
+
+
+def test_light_on_dark_is_no_ink_on_paper():
+    """scikit-image's Hubble deep field as a 640 px JPEG (galaxies on a black sky) was read as a
+    scan whose ink is the sky: a black page with a pale blot. Its dark ground is no ink."""
+    import skimage.data
+
+    im = Image.fromarray(skimage.data.hubble_deep_field())
+    im.thumbnail((640, 640))
+    buf = io.BytesIO()
+    im.save(buf, "JPEG")
+    r = read(np.asarray(Image.open(buf), np.float64) / 255)
+    assert r.kind == "photo"
+
+
+def test_a_grainy_gradient_is_no_page():
+    """A black-to-white ramp with a little grain (OpenCV's sample gradient.png is one): its light fits a
+    smooth surface exactly, so as a page it flattened to blank white paper (MSE 0.29). Paper is never black."""
+    rng = np.random.default_rng(0)
+    ramp = np.tile(np.linspace(0, 1, 300), (300, 1)) + rng.normal(0, 0.004, (300, 300))
+    pic = np.repeat(np.round(np.clip(ramp, 0, 1) * 255)[..., None] / 255, 3, -1)
+    r = read(pic)
+    assert r.kind not in ("scan", "line")
+    assert ((r.picture - pic) ** 2).mean() < 1e-3
+
+
 def test_a_clean_colour_picture_is_not_read_as_a_scan():
     """A rendered colour picture (no grain) stays a logo, whatever its colours' layout."""
     body = ('<rect width="64" height="64" fill="#f4d03f"/><circle cx="32" cy="32" r="20" fill="#8e5a2b"/>'

@@ -1,22 +1,19 @@
-"""Read a picture as a person would before tracing it: what kind of picture it is, and the clean
-picture it shows.
+"""Read a picture as a person would before tracing it: what kind of picture it is, and the clean picture it shows.
 
-- **pixel**: pixel art: exact colours, blocks of ``block`` px (nearest-neighbour upscaling);
-  the picture is read at one pixel a block and traced along its pixel edges;
-- **scan**: a scan or phone photo of ink on paper: the paper's uneven light flattened (its
-  brightness fitted by a smooth surface and divided out), the noise and JPEG ringing smoothed
-  away, and the result read as ink on white paper; black-looking ink becomes black;
-- **line**: a two-tone drawing of thin (1-3 px) strokes, traced at half each stroke's own
-  darkness (``half_max``), so that strokes thinner than a pixel stay whole; a scan's and line
-  art's pieces and holes under ``speckle`` x ``speckle`` px are dropped (``--filter-speckle``);
+- **pixel**: pixel art: exact colours, blocks of ``block`` px (nearest-neighbour upscaling); the picture is read at
+  one pixel a block and traced along its pixel edges;
+- **scan**: a scan or phone photo of ink on light paper: the paper's uneven light flattened (its brightness
+  fitted by a smooth surface and divided out), the noise and JPEG ringing smoothed away, and the result read
+  as ink on white paper; black-looking ink becomes black;
+- **line**: a two-tone drawing of thin (1-3 px) strokes, traced at half each stroke's own darkness (``half_max``),
+  so that strokes thinner than a pixel stay whole; a scan's and line art's pieces and holes under ``speckle`` x
+  ``speckle`` px are dropped (``--filter-speckle``);
 - **logo**: flat colours (glyphs, icons, logos, emoji), JPEG ringing smoothed first;
-- **photo**: a continuous-tone picture, lightly smoothed (``PHOTO_SIGMA``) and cut into pieces of
-  one fine colour step (``photo.pieces``), none smaller than ``speckle``^2 px.
+- **photo**: a continuous-tone picture, lightly smoothed (``PHOTO_SIGMA``) and cut into pieces of one fine colour
+  step (``photo.pieces``), none smaller than ``speckle``^2 px.
 
-Pixel art and photos are not polished through the renderer (the one exact, the other of too
-many segments); nor is any picture larger than the polish's size (``options.Plan.max_side``).
-
-Frame: ``(H, W, 3)`` float arrays in [0, 1].
+Pixel art and photos are not polished through the renderer (the one exact, the other of too many segments);
+nor is any picture larger than the polish's size (``options.Plan.max_side``). Frame: ``(H, W, 3)`` floats in [0, 1].
 """
 
 from __future__ import annotations
@@ -54,6 +51,7 @@ FRINGE_CHROMA, FRINGE_STEP, FRINGE_EDGE = 0.1, 0.15, 0.9  # sub-pixel text: colo
 SHADED = 0.02  # ink on paper has at most this share of in-between shades (``shaded_share``)
 BLACK_INK = 0.35  # ink of a scan darker than this (mean channel, after flattening) and ...
 NEUTRAL_INK = 0.12  # ... less colourful than this (channel spread) is black ink
+PAPER_LIGHT, INK_AT_MOST = (0.15, 0.5), 0.5  # a page as shot: paper's 5th percentile, median; ink's largest share
 
 
 @dataclass(frozen=True)
@@ -112,7 +110,7 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
         if preset is not None or noise > NOISE or light > UNEVEN:
             lum = smoothed(mean3(flat), noise)
             ink, alpha = ink_coverage(flat, lum)
-            if preset is not None or (_is_two_tone(flat, ink) and shaded_share(alpha) <= SHADED):
+            if preset is not None or (_is_two_tone(flat, ink, picture, alpha) and shaded_share(alpha) <= SHADED):
                 # read at the darkest ink, where thin strokes keep their weight (not needed for a forced scan)
                 thin = None if preset == "scan" else ink_coverage(flat, lum, sharp=True)
                 kind = preset or ("line" if stroke_width(thin[1] >= 0.5) <= THIN else "scan")
@@ -342,11 +340,15 @@ def ink_coverage(picture: np.ndarray, lum: np.ndarray, sharp: bool = False) -> t
     return ink, alpha
 
 
-def _is_two_tone(flat: np.ndarray, ink: np.ndarray) -> bool:
+def _is_two_tone(flat: np.ndarray, ink: np.ndarray, picture: np.ndarray, alpha: np.ndarray) -> bool:
     """Whether the flattened picture is ink on paper: the ink's colour explains its dark pixels
-    (few pixels far from the paper-ink line, each pixel's coverage read from its own,
-    unsmoothed brightness) and the ink stands out of the paper."""
-    if ink.mean() > 0.75:
+    (few pixels far from the paper-ink line, each pixel's coverage read from its own, unsmoothed brightness),
+    the ink stands out of the paper, and the paper of ``picture`` (where ``alpha``, the coverage, is under 0.5)
+    is light and the ground (``PAPER_LIGHT``, ``INK_AT_MOST``): a dim photo of dark lines (a retina's vessels),
+    a night sky or a black-to-white gradient is no page to whiten."""
+    paper = alpha[::2, ::2] < 0.5
+    paper_ok = paper.mean() >= 1 - INK_AT_MOST and (np.percentile(mean3(picture[::2, ::2])[paper], [5, 50]) >= PAPER_LIGHT).all()
+    if ink.mean() > 0.75 or not paper_ok:
         return False
     sample = flat[::2, ::2]
     _, alpha = ink_coverage(sample, mean3(sample))
