@@ -105,3 +105,49 @@ def test_edge_agreement():
     bars[:, 10:20] = bars[:, 40:50] = 0.2  # vertical edges 10 px apart or more
     shifted = np.roll(bars, 3, axis=1)  # every edge 3 px off: none within 1.5 px
     assert edge_agreement(bars, shifted) < 0.05 and edge_agreement(bars, np.roll(bars, 1, axis=1)) > 0.95
+
+
+def test_a_renders_small_marks_are_kept_and_grain_is_merged():
+    """A rendered picture has no grain: its marks of a few px (a screenshot's anti-aliased text, dots on a shaded
+    panel: darker or lighter than all around them, ``photo.marks``) are kept down to ``MARK_SPECK`` (2 px a side);
+    with grain, pieces that small are noise and are merged (``PHOTO_SPECK``, 4 px). Before, the 3x3 px dots on
+    white vanished (rendered 1.0)."""
+    from im2vec_cli.trace.read import read
+
+    image = drawing(shaded=True)
+    centres = [(20 + 10 * i, 8) for i in range(13)] + [(60, 40 + 8 * i) for i in range(6)]  # on white, on the discs
+    for y, x in centres:
+        image[y - 1 : y + 2, x - 1 : x + 2] = 0.05
+    reading = read(image)
+    assert reading.kind == "photo" and (reading.speck, reading.marks) == (16, 4)
+    render = rasterize_svg(api.vectorize(image).to_svg(), 160, 160)
+    assert max(render[y, x].mean() for y, x in centres) < 0.3  # measured: 0.12-0.18
+    grainy = np.clip(image + np.random.default_rng(0).normal(0, 0.01, image.shape), 0, 1)
+    assert (read(grainy).speck, read(grainy).marks) == (16, 0)
+
+
+def test_a_picture_read_as_a_photo_is_cut_into_pieces_though_its_blur_looks_two_tone():
+    """A small grey icon (a sheet: dark frame, near-white page, grey lines of text), blurred as a photo is, lies on
+    one line from white to grey: traced as two-tone it came out one dark grey block. Read as a photo, it is its
+    pieces: the page stays light and its lines keep their grey."""
+    from im2vec_cli.trace.photo import PHOTO_SIGMA
+    from im2vec_cli.trace.regions import background_color, trace, two_tone
+
+    icon = np.ones((22, 22, 3))
+    icon[3:19, 4:18] = 0.55
+    icon[4:18, 5:17] = 0.95
+    icon[7:15:2, 7:15] = 0.75
+    picture = ndi.gaussian_filter(icon, (PHOTO_SIGMA, PHOTO_SIGMA, 0), mode="nearest")
+    assert two_tone(picture, background_color(picture)) is not None
+    greys = [r.color[0] for r in trace(picture, kind="photo", speck=4)]
+    assert any(g >= 0.9 for g in greys) and any(abs(g - 0.8) < 0.05 for g in greys)  # measured: 0.95, 0.80
+
+
+def test_a_mark_is_darker_or_lighter_than_all_it_touches_and_an_edges_mix_is_not():
+    from im2vec_cli.trace.photo import marks
+
+    lum = np.array([90.0, 50.0, 10.0, 12.0, 4.0])  # paper, the mix along an edge, ink, a dot, the ink's shadow
+    touching = [(0, 1), (1, 2), (2, 4), (0, 3)]  # paper | mix | ink | shadow, and the dot on the paper
+    a = np.array([p for p, q in touching] + [q for p, q in touching])
+    b = np.array([q for p, q in touching] + [p for p, q in touching])
+    assert marks(lum, a, b).tolist() == [True, False, False, True, True]  # paper too (large: never merged)

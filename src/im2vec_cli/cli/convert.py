@@ -65,7 +65,8 @@ PLAN_SAMPLE = 64  # --jobs auto: the pictures whose sizes are read to weigh the 
 @click.option("--filter-speckle", "speckle", type=click.IntRange(0, MAX_SPECKLE), default=None, metavar="PX",
               help="With --parts clean: drop pieces and holes smaller than PX x PX pixels from scans and line art "
                    "(0: keep all), and merge a photo's pieces smaller than that into their neighbours (its knob for "
-                   "detail). [2, and 1 more per 256 px of the picture's longer side; at least 4 for a photo]")
+                   "detail). [2, and 1 more per 256 px of the picture's longer side; at least 4 for a photo, but "
+                   "a rendered one keeps its marks (text, dots) down to 2]")
 @click.option("-v", "--verbose", is_flag=True, help="Per picture a line on stderr: the kind it was read as, paths, "
               "segments.")
 @click.option("--simplify", "simplify_px", type=Finite(0), default=None,

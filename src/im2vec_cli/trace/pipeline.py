@@ -45,6 +45,7 @@ class Start:
     kind: str = ""  # what the picture was read as (``read.Reading.kind``): pixel art and photos are traced their way
     tone: tuple[np.ndarray, np.ndarray] | None = None  # a two-tone picture's ink and coverage (``read.Reading``)
     speck: int = 0  # px: a photo's smallest piece (``read.Reading``)
+    marks: int = 0  # px: and its smallest mark
 
     def outline(self, tol: float) -> tuple[VectorImage, Corners, bool]:
         """Fitted within ``tol`` px, even-odd: the contours of a clean shape do not overlap, so
@@ -52,7 +53,8 @@ class Start:
         (seconds on a picture of many regions). ``finish`` writes them nonzero. The flag:
         the outline is exact (``outline.traced``), not to be polished."""
         if self.paths is None:
-            vec, flags, exact = traced(self.picture, tol, self.colors, self.max_paths, self.kind, self.tone, self.speck)
+            vec, flags, exact = traced(self.picture, tol, self.colors, self.max_paths, self.kind, self.tone,
+                                       self.speck, self.marks)
         else:
             (vec, flags), exact = redrawn(self.paths, tol, self.picture), False
         return with_rule(vec, "evenodd"), flags, exact
@@ -62,7 +64,7 @@ def image_starts(pictures: list[np.ndarray], s: Plan, readings: list[Reading]) -
     """Each picture's own start: its regions traced as its reading says (``s.colors``,
     ``s.max_paths``)."""
     return [Start("image", pic, colors=s.colors, max_paths=s.max_paths,
-                  kind=r.kind, tone=r.tone, speck=r.speck) for pic, r in zip(pictures, readings)]
+                  kind=r.kind, tone=r.tone, speck=r.speck, marks=r.marks) for pic, r in zip(pictures, readings)]
 
 
 def model_start_wanted(pictures: list[np.ndarray], s: Plan, readings: list[Reading], polish: list[bool]) -> list[int]:

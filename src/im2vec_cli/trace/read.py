@@ -2,15 +2,13 @@
 
 - **pixel**: pixel art: exact colours, blocks of ``block`` px (nearest-neighbour upscaling); the picture is read at
   one pixel a block and traced along its pixel edges;
-- **scan**: a scan or phone photo of ink on light paper: the paper's uneven light flattened (its brightness
-  fitted by a smooth surface and divided out), the noise and JPEG ringing smoothed away, and the result read
-  as ink on white paper; black-looking ink becomes black;
-- **line**: a two-tone drawing of thin (1-3 px) strokes, traced at half each stroke's own darkness (``half_max``),
-  so that strokes thinner than a pixel stay whole; a scan's and line art's pieces and holes under ``speckle`` x
-  ``speckle`` px are dropped (``--filter-speckle``);
+- **scan**: a scan or phone photo of ink on light paper: its uneven light flattened (a smooth surface fitted to the
+  paper, divided out), noise and JPEG ringing smoothed away, read as ink on white paper (black-looking ink black);
+- **line**: a two-tone drawing of thin (1-3 px) strokes, traced at half each stroke's own darkness (``half_max``), so
+  strokes thinner than a pixel stay whole; a scan's and line art's pieces and holes under ``speckle``^2 px dropped;
 - **logo**: flat colours (glyphs, icons, logos, emoji), JPEG ringing smoothed first;
 - **photo**: a continuous-tone picture, lightly smoothed (``PHOTO_SIGMA``) and cut into pieces of one fine colour
-  step (``photo.pieces``), none smaller than ``speckle``^2 px.
+  step (``photo.pieces``), none smaller than ``speckle``^2 px but a render's marks (text, dots).
 
 Pixel art and photos are not polished through the renderer (the one exact, the other of too many segments);
 nor is any picture larger than the polish's size (``options.Plan.max_side``). Frame: ``(H, W, 3)`` floats in [0, 1].
@@ -36,10 +34,11 @@ OFF_LINE = 0.15  # a flattened pixel this far (RGB) from the paper-ink line is a
 OFF_SHARE = 0.05  # ...and a picture with more than this share of them is no ink on paper (scans: under 0.3%,
 # photographed scribbles 3%, OpenMoji faces with a dark outline 12-24%: bench/realworld.py, bench/hardening.py)
 THIN = 3.5  # px: strokes at most this wide (median) make line art
-PHOTO_SPECK = 4  # px a side: a photo's smallest piece unless --filter-speckle says (as vtracer's default)
-PIXEL_EDGES = 0.08  # native pixel art (no upscaling found) has at least this share of its pixels on a colour
-# edge (its pixels are its features: 0.3-0.9 on sprites); a hard-edged drawing of large shapes, its curves
-# aliased, has far fewer (flat circles at 384-512 px: 0.02-0.05) and is traced with smooth curves as a logo
+PHOTO_SPECK = 4  # px a side: a photo's smallest piece unless --filter-speckle says (as vtracer's default)...
+MARK_SPECK = 2  # ...but a rendered one's (no grain) marks down to this (``photo.marks``: text, dots): no specks
+PIXEL_EDGES = 0.08  # native pixel art (no upscaling found) has at least this share of its pixels on a colour edge (its
+# pixels are its features: 0.3-0.9 on sprites); a hard-edged drawing of large shapes, its curves aliased, has far
+# fewer (flat circles at 384-512 px: 0.02-0.05) and is traced with smooth curves as a logo
 PIXEL_SIDE = 64  # a hard-edged picture this small is pixel art whatever its edges
 THICK_SHARE = 0.8  # ...and so is one with a colour (of THIN_MIN pixels or more) that a 3x3 erosion keeps less of:
 THIN_MIN = 4  # 1 px lines keep 0-0.06, the Shepp-Logan phantom's 2-4 px ring 0.74, flat circles 0.84-0.96
@@ -60,7 +59,7 @@ class Reading:
     trace: the input's size, or for pixel art its block (``figures["block"]``) times smaller.
     ``polish``: whether the outline is worth polishing against the picture. ``figures``: what the
     reading measured. ``tone``: a two-tone picture's ink and its coverage (``regions.two_tone``),
-    found once. ``speck``: a photo's smallest piece."""
+    found once. ``speck``: a photo's smallest piece, ``marks`` its smallest mark."""
 
     kind: str
     picture: np.ndarray
@@ -68,15 +67,16 @@ class Reading:
     figures: dict | None = None
     tone: tuple[np.ndarray, np.ndarray] | None = None  # a two-tone picture's (ink (3,), coverage (H', W'))
     speck: int = 0  # px (``photo.pieces``)
+    marks: int = 0  # px: a photo's smallest mark kept (``photo.pieces``), if any
 
 
 def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = None, colors: int | None = None
          ) -> Reading:
-    """The reading of ``picture (H, W, 3)`` in [0, 1]: of the kind ``preset`` (one of ``KINDS``)
-    or, with ``None``, of the kind it looks like. ``speckle``: pieces smaller than this many px a
-    side are dropped from scans and line art (``None``: 2 px, and 1 px more per 256 px of the
-    longer side) and merged into their neighbours in a photo (``None``: that, at least
-    ``PHOTO_SPECK``). ``colors`` (``--colors``): a drawing is read as a logo of that palette."""
+    """The reading of ``picture (H, W, 3)`` in [0, 1]: of the kind ``preset`` (one of ``KINDS``) or, with ``None``, of
+    the kind it looks like. ``speckle``: pieces smaller than this many px a side are dropped from scans and line art
+    (``None``: 2 px, and 1 px more per 256 px of the longer side) and merged into their neighbours in a photo
+    (``None``: that, at least ``PHOTO_SPECK``, but a rendered picture's marks down to ``MARK_SPECK``). ``colors``
+    (``--colors``): a drawing is read as a logo of that palette."""
     h, w, _ = picture.shape
     speck = max(2, 2 + max(h, w) // 256) if speckle is None else speckle
     block = pixel_block(picture) if preset in (None, "pixel") else 1
@@ -122,26 +122,27 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
                     alpha = half_max(alpha, level=STROKE_LEVEL)
                 return Reading(kind, clean, figures=figures, tone=(ink, alpha) if alpha.max() >= 0.1 else None)
     piece = max(speck, PHOTO_SPECK) ** 2 if speckle is None else speckle**2
+    mark = MARK_SPECK**2 if speckle is None and noise <= GRAIN else 0  # a render's small marks are no grain
     if preset == "photo" or (preset is None and looks_like_a_photo(picture)):
-        return _photo(picture, figures, piece)
+        return _photo(picture, figures, piece, mark)
     judge = preset is None and colors is None and not hard and h * w <= AGREE_PIXELS
-    return _logo_or_photo(picture, noise, figures, piece, judge)
+    return _logo_or_photo(picture, noise, figures, (piece, mark), judge)
 
 
-def _logo_or_photo(picture: np.ndarray, noise: float, figures: dict, piece: int, judge: bool) -> Reading:
+def _logo_or_photo(picture: np.ndarray, noise: float, figures: dict, piece: tuple[int, int], judge: bool) -> Reading:
     """A drawing read as a logo or, ``judge``-d so, as a photo where its pieces draw it closer (``photo.agrees_better``,
     on the picture cast through float32 as ``batch.read_pictures`` casts it: the trace finds the palette kept)."""
     logo = smoothed(picture, noise) if noise > NOISE else picture
     if judge:
-        better, agreement = agrees_better(logo.astype(np.float32).astype(np.float64), piece)
+        better, agreement = agrees_better(logo.astype(np.float32).astype(np.float64), *piece)
         figures.update(agreement)
         if better:
-            return _photo(picture, figures, piece)
+            return _photo(picture, figures, *piece)
     return Reading("logo", logo, figures=figures)
 
 
-def _photo(picture: np.ndarray, figures: dict, piece: int) -> Reading:  # its smallest piece ``piece`` px
-    return Reading("photo", gaussian(picture, PHOTO_SIGMA), polish=False, figures=figures, speck=piece)
+def _photo(picture: np.ndarray, figures: dict, piece: int, mark: int) -> Reading:  # ``Reading.speck``, ``marks``
+    return Reading("photo", gaussian(picture, PHOTO_SIGMA), polish=False, figures=figures, speck=piece, marks=mark)
 
 
 def shaded_share(alpha: np.ndarray) -> float:
@@ -346,9 +347,8 @@ def _is_two_tone(flat: np.ndarray, ink: np.ndarray, picture: np.ndarray, alpha: 
     the ink stands out of the paper, and the paper of ``picture`` (where ``alpha``, the coverage, is under 0.5)
     is light and the ground (``PAPER_LIGHT``, ``INK_AT_MOST``): a dim photo of dark lines (a retina's vessels),
     a night sky or a black-to-white gradient is no page to whiten."""
-    paper = alpha[::2, ::2] < 0.5
-    paper_ok = paper.mean() >= 1 - INK_AT_MOST and (np.percentile(mean3(picture[::2, ::2])[paper], [5, 50]) >= PAPER_LIGHT).all()
-    if ink.mean() > 0.75 or not paper_ok:
+    paper, grey = alpha[::2, ::2] < 0.5, mean3(picture[::2, ::2])
+    if ink.mean() > 0.75 or paper.mean() < 1 - INK_AT_MOST or (np.percentile(grey[paper], [5, 50]) < PAPER_LIGHT).any():
         return False
     sample = flat[::2, ::2]
     _, alpha = ink_coverage(sample, mean3(sample))

@@ -18,9 +18,8 @@ White connected to the picture's border is the background (the canvas: transpare
 SVG; inputs with alpha were composited over white when read). Any other background colour
 becomes a full-canvas region at the back.
 
-Frame: pixel coordinates of the input, ``x`` right and ``y`` down, pixel ``(row i, col j)``
-covering ``[j, j+1] x [i, i+1]``. Outer boundaries run clockwise on screen, holes counter-
-clockwise, so the nonzero and even-odd rules agree on every region.
+Frame: pixel coordinates of the input, ``x`` right and ``y`` down, pixel ``(row i, col j)`` covering ``[j, j+1] x
+[i, i+1]``. Outer boundaries run clockwise on screen, holes counter-clockwise: nonzero and even-odd agree.
 """
 
 from __future__ import annotations
@@ -141,7 +140,7 @@ def two_tone(image: np.ndarray, bg: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 
 def trace(image: np.ndarray, colors: int | None = None, max_regions: int | None = None,
           seed: int = 0, kind: str = "", tone: tuple[np.ndarray, np.ndarray] | None = None,
-          speck: int = 0) -> list[Region]:
+          speck: int = 0, marks: int = 0) -> list[Region]:
     """The regions of ``image (H, W, 3)`` in [0, 1], back to front.
 
     Args:
@@ -151,8 +150,8 @@ def trace(image: np.ndarray, colors: int | None = None, max_regions: int | None 
         max_regions: keep this many regions at most (the largest).
         kind: what ``read.read`` read the picture as. ``"pixel"``: its exact colours traced
             along its pixel edges, whatever their number (at most ``MAX_HARD_COLORS``) or
-            mixes; ``"photo"``: its pieces of one fine colour step, none under ``speck`` px
-            (``photo.pieces``), or with ``colors`` posterised to that many (``palette.posterize``).
+            mixes; ``"photo"``: its pieces of one fine colour step, none under ``speck`` px but
+            marks of ``marks`` (``photo.pieces``), or with ``colors`` posterised to that many (``palette.posterize``).
         tone: ``two_tone(image, background_color(image))`` where it is known (``read.read``).
     """
     image = np.asarray(image, dtype=np.float64)
@@ -166,17 +165,18 @@ def trace(image: np.ndarray, colors: int | None = None, max_regions: int | None 
             return _layers(*hard, white_around=white, exact=exact)
         return _with_background(bg, _stacked_regions(image, *hard, max_regions, white, exact=exact), image.shape,
                                 exact=exact)
-    tone = (two_tone(image, bg) if tone is None else tone) if colors in (None, 1) else None
+    photo = kind == "photo" and colors is None  # read as a photo: its pieces, though its blur may look two-tone
+    tone = None if photo else (two_tone(image, bg) if tone is None else tone) if colors in (None, 1) else None
     if tone is None and colors == 1:
         ink, t = _ink_line(image, bg, 0.8)
         tone = ink, np.clip(t, 0, 1)
     if tone is not None:
         ink, alpha = tone
         return _with_background(bg, [Region(tuple(ink.tolist()), level_polygons(alpha))], image.shape)
-    if kind == "photo" and colors is None:
+    if photo:
         from .photo import pieces
 
-        palette, labels = pieces(image, max(speck, 1))
+        palette, labels = pieces(image, max(speck, 1), marks)
         return _with_background(bg, _stacked_regions(image, palette, labels, max_regions, white, each_one=True),
                                 image.shape)
     palette, labels = posterize(image, colors, seed) if kind == "photo" else quantize(image, colors, seed)
