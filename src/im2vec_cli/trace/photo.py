@@ -5,7 +5,8 @@ whose steps show as edges the photo does not have, and merges neighbours of near
 whose edge it does have. Here the photo's CIELAB values are cut into steps of ``STEP_L`` in
 lightness and ``STEP_AB`` in a and b (about 15 grey levels: under the step an edge detector
 sees), each 4-connected piece of one step is a piece, and pieces smaller than ``min_px`` are
-merged into the neighbour nearest in colour until none is left (and no more than ``MAX_PIECES``). Each piece keeps the mean
+merged into the neighbour nearest in colour until none is left (and no more than ``MAX_PIECES``), but marks
+(``marks``: a stroke of text, a dot, darker or lighter than all around them). Each piece keeps the mean
 colour of its pixels, so shading comes out as fine bands and edges stay where they are.
 
 ``looks_like_a_photo`` tells a photo (continuous tone) from a drawing (flat colours), grey ones too;
@@ -21,6 +22,8 @@ import numpy as np
 
 STEP_L = 6.0  # CIELAB lightness of one step (of 100): about 15 levels of 255
 STEP_AB = 12.0  # a and b of one step: hue and saturation change less where the eye looks
+MARK_PX = 4  # a piece this small (2x2 px) that stands out of all it touches (``marks``) is kept: text, a dot...
+MARK_RENDERED, MARK_GRAINY = STEP_L / 2, 2 * STEP_L  # ...by this lightness in a picture without grain, and with
 MERGE_ROUNDS = 16  # rounds of merging small pieces (each merges all of them at once; 4-8 are usual)
 PHOTO_SHARE = 0.6  # a picture whose 16 commonest colours (4 bits a channel) cover less than this share is a photo
 GREY_PHOTO_SHARE = 0.35  # a grey picture whose 16 commonest 8-bit grey levels cover less than this is a photo (4 bits
@@ -40,10 +43,10 @@ MAX_PIECES = 6000  # a photo of more pieces (grain, noise) has its smallest merg
 # tuned photos of bench/wild.py have 600-7700 at 4 px; vtracer draws 1,400-6,000 paths on them
 
 
-def pieces(image: np.ndarray, min_px: int, mark_px: int = 0) -> tuple[np.ndarray, np.ndarray]:
+def pieces(image: np.ndarray, min_px: int, mark_by: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """``(colours (K, 3), ids (H, W))``: the photo ``image`` cut into pieces of one colour step,
-    none smaller than ``min_px`` px (but where a piece has no neighbour, or, with ``mark_px``, is a mark of at least
-    that many px: ``merged``) and at most ``MAX_PIECES`` of them (the smallest size raised until so), each of the
+    none smaller than ``min_px`` px (but where a piece has no neighbour, or, with ``mark_by``, is a mark:
+    ``merged``) and at most ``MAX_PIECES`` of them (the smallest size raised until so), each of the
     mean colour of its pixels."""
     from .ndops import equal_pieces, gaussian, rgb2lab
 
@@ -52,7 +55,7 @@ def pieces(image: np.ndarray, min_px: int, mark_px: int = 0) -> tuple[np.ndarray
     if n > GRAIN_PIECES * ids.size:  # noise, not a photo: its pieces from a blurred copy, fewer and rounder
         lab = rgb2lab(gaussian(image, GRAIN_SIGMA))
         ids, n = equal_pieces(_steps(lab))
-    ids, n = merged(ids, n, lab, min_px, mark_px)
+    ids, n = merged(ids, n, lab, min_px, mark_by)
     while n > MAX_PIECES:
         min_px = min_px * n // MAX_PIECES + 1
         ids, n = merged(ids, n, lab, min_px)
@@ -75,10 +78,10 @@ def _means(ids: np.ndarray, n: int, values: np.ndarray) -> np.ndarray:
                     -1) / area[:, None]
 
 
-def merged(ids: np.ndarray, n: int, values: np.ndarray, min_px: int, mark_px: int = 0) -> tuple[np.ndarray, int]:
+def merged(ids: np.ndarray, n: int, values: np.ndarray, min_px: int, mark_by: float = 0.0) -> tuple[np.ndarray, int]:
     """Pieces ``ids (H, W)`` (0..n-1) with those smaller than ``min_px`` merged, round by round,
-    into the 4-neighbour whose mean of ``values (H, W, C)`` is nearest theirs: ``(ids, n)``. With ``mark_px``, a
-    piece of at least that many px that is a mark (``marks``: a rendered picture's text, a dot) is kept.
+    into the 4-neighbour whose mean of ``values (H, W, C)`` is nearest theirs: ``(ids, n)``. With ``mark_by``, a
+    piece of at least ``MARK_PX`` px that is a mark by that much lightness (``marks``: text, a dot) is kept.
     A piece and the one it picks may pick each other: the larger takes the smaller. No other
     loop is possible (each pick is the nearest, so the distances along a loop could not
     all fall), and chains are followed to their end."""
@@ -92,8 +95,8 @@ def merged(ids: np.ndarray, n: int, values: np.ndarray, min_px: int, mark_px: in
         a = np.concatenate([ids[:, 1:][across], ids[1:][down]])
         b = np.concatenate([ids[:, :-1][across], ids[:-1][down]])
         a, b = np.concatenate([a, b]), np.concatenate([b, a])  # each touching pair both ways
-        if mark_px:
-            small &= ~(marks(mean[:, 0], a, b) & (area >= mark_px))
+        if mark_by:
+            small &= ~(marks(mean[:, 0], a, b, mark_by) & (area >= MARK_PX))
         keep = small[a]
         if not keep.any():
             break
@@ -117,14 +120,14 @@ def merged(ids: np.ndarray, n: int, values: np.ndarray, min_px: int, mark_px: in
     return ids, n
 
 
-def marks(lum: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def marks(lum: np.ndarray, a: np.ndarray, b: np.ndarray, by: float) -> np.ndarray:
     """``(n,)`` bool: the pieces whose lightness ``lum (n,)`` is darker, or lighter, than that of every piece they
-    touch (the pairs ``a``-``b``, both ways) by half a step: marks of their own (a stroke of text, a dot), not the
+    touch (the pairs ``a``-``b``, both ways) by more than ``by``: marks of their own (a stroke of text, a dot), not the
     mix along an edge between two colours, which lies between its neighbours."""
     lo, hi = np.full(len(lum), np.inf), np.full(len(lum), -np.inf)
     np.minimum.at(lo, a, lum[b])
     np.maximum.at(hi, a, lum[b])
-    return (lum < lo - STEP_L / 2) | (lum > hi + STEP_L / 2)
+    return (lum < lo - by) | (lum > hi + by)
 
 
 def looks_like_a_photo(picture: np.ndarray) -> bool:
@@ -153,7 +156,7 @@ def grey_share(picture: np.ndarray, k: int = 16) -> float:
     return float(np.sort(counts)[::-1][:k].sum() / counts.sum())
 
 
-def agrees_better(picture: np.ndarray, min_px: int, mark_px: int = 0, seed: int = 0) -> tuple[bool, dict]:
+def agrees_better(picture: np.ndarray, min_px: int, mark_by: float = 0.0, seed: int = 0) -> tuple[bool, dict]:
     """Whether the drawing ``picture (H, W, 3)`` (multi-colour, not hard-edged) agrees better with
     itself cut into a photo's ``pieces`` (as ``read.read`` cuts a photo) than quantised to its
     palette (``palette.quantize``, as a logo is): each drawn as a raster of its labels' colours,
@@ -168,7 +171,7 @@ def agrees_better(picture: np.ndarray, min_px: int, mark_px: int = 0, seed: int 
     edges = {"logo_edges": edge_agreement(picture, logo)}
     if edges["logo_edges"] + AGREE_MARGIN > 1:  # no cut can agree by the margin more (a flat logo): not cut
         return False, {k: round(v, 3) for k, v in edges.items()}
-    colours, ids = pieces(gaussian(picture, PHOTO_SIGMA), min_px, mark_px)
+    colours, ids = pieces(gaussian(picture, PHOTO_SIGMA), min_px, mark_by)
     photo = colours[ids]
     edges["photo_edges"] = edge_agreement(picture, photo)
     better = edges["photo_edges"] >= edges["logo_edges"] + AGREE_MARGIN and (

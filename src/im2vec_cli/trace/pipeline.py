@@ -45,7 +45,7 @@ class Start:
     kind: str = ""  # what the picture was read as (``read.Reading.kind``): pixel art and photos are traced their way
     tone: tuple[np.ndarray, np.ndarray] | None = None  # a two-tone picture's ink and coverage (``read.Reading``)
     speck: int = 0  # px: a photo's smallest piece (``read.Reading``)
-    marks: int = 0  # px: and its smallest mark
+    marks: float = 0.0  # and how much a smaller mark stands out
 
     def outline(self, tol: float) -> tuple[VectorImage, Corners, bool]:
         """Fitted within ``tol`` px, even-odd: the contours of a clean shape do not overlap, so

@@ -23,7 +23,7 @@ import numpy as np
 from ..options import PRESETS
 from .ndops import gaussian, mean3, norm3, rgb_keys, spread3
 from .palette import MAX_HARD_COLORS, hard_palette
-from .photo import AGREE_PIXELS, PHOTO_SIGMA, agrees_better, looks_like_a_photo
+from .photo import AGREE_PIXELS, MARK_GRAINY, MARK_RENDERED, PHOTO_SIGMA, agrees_better, looks_like_a_photo
 from .regions import background_color, two_tone
 
 KINDS = PRESETS[1:]  # the kinds of picture: options.PRESETS but "auto"
@@ -34,8 +34,8 @@ OFF_LINE = 0.15  # a flattened pixel this far (RGB) from the paper-ink line is a
 OFF_SHARE = 0.05  # ...and a picture with more than this share of them is no ink on paper (scans: under 0.3%,
 # photographed scribbles 3%, OpenMoji faces with a dark outline 12-24%: bench/realworld.py, bench/hardening.py)
 THIN = 3.5  # px: strokes at most this wide (median) make line art
-PHOTO_SPECK = 4  # px a side: a photo's smallest piece unless --filter-speckle says (as vtracer's default)...
-MARK_SPECK = 2  # ...but a rendered one's (no grain) marks down to this (``photo.marks``: text, dots): no specks
+PHOTO_SPECK = 4  # px a side: a photo's smallest piece unless --filter-speckle says (as vtracer's default), but
+# marks (``photo.MARK_PX``: text, dots) that stand out of all they touch by more than grain could make them
 PIXEL_EDGES = 0.08  # native pixel art (no upscaling found) has at least this share of its pixels on a colour edge (its
 # pixels are its features: 0.3-0.9 on sprites); a hard-edged drawing of large shapes, its curves aliased, has far
 # fewer (flat circles at 384-512 px: 0.02-0.05) and is traced with smooth curves as a logo
@@ -59,7 +59,7 @@ class Reading:
     trace: the input's size, or for pixel art its block (``figures["block"]``) times smaller.
     ``polish``: whether the outline is worth polishing against the picture. ``figures``: what the
     reading measured. ``tone``: a two-tone picture's ink and its coverage (``regions.two_tone``),
-    found once. ``speck``: a photo's smallest piece, ``marks`` its smallest mark."""
+    found once. ``speck``: a photo's smallest piece, ``marks`` how much a smaller mark stands out."""
 
     kind: str
     picture: np.ndarray
@@ -67,7 +67,7 @@ class Reading:
     figures: dict | None = None
     tone: tuple[np.ndarray, np.ndarray] | None = None  # a two-tone picture's (ink (3,), coverage (H', W'))
     speck: int = 0  # px (``photo.pieces``)
-    marks: int = 0  # px: a photo's smallest mark kept (``photo.pieces``), if any
+    marks: float = 0.0  # lightness by which a photo's marks smaller than ``speck`` stand out (``photo.pieces``)
 
 
 def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = None, colors: int | None = None
@@ -75,7 +75,7 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
     """The reading of ``picture (H, W, 3)`` in [0, 1]: of the kind ``preset`` (one of ``KINDS``) or, with ``None``, of
     the kind it looks like. ``speckle``: pieces smaller than this many px a side are dropped from scans and line art
     (``None``: 2 px, and 1 px more per 256 px of the longer side) and merged into their neighbours in a photo
-    (``None``: that, at least ``PHOTO_SPECK``, but a rendered picture's marks down to ``MARK_SPECK``). ``colors``
+    (``None``: that, at least ``PHOTO_SPECK``, but marks down to ``photo.MARK_PX``). ``colors``
     (``--colors``): a drawing is read as a logo of that palette."""
     h, w, _ = picture.shape
     speck = max(2, 2 + max(h, w) // 256) if speckle is None else speckle
@@ -122,14 +122,14 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
                     alpha = half_max(alpha, level=STROKE_LEVEL)
                 return Reading(kind, clean, figures=figures, tone=(ink, alpha) if alpha.max() >= 0.1 else None)
     piece = max(speck, PHOTO_SPECK) ** 2 if speckle is None else speckle**2
-    mark = MARK_SPECK**2 if speckle is None and noise <= GRAIN else 0  # a render's small marks are no grain
+    mark = (MARK_RENDERED if noise <= GRAIN else MARK_GRAINY) if speckle is None else 0.0  # text, dots
     if preset == "photo" or (preset is None and looks_like_a_photo(picture)):
         return _photo(picture, figures, piece, mark)
     judge = preset is None and colors is None and not hard and h * w <= AGREE_PIXELS
     return _logo_or_photo(picture, noise, figures, (piece, mark), judge)
 
 
-def _logo_or_photo(picture: np.ndarray, noise: float, figures: dict, piece: tuple[int, int], judge: bool) -> Reading:
+def _logo_or_photo(picture: np.ndarray, noise: float, figures: dict, piece: tuple[int, float], judge: bool) -> Reading:
     """A drawing read as a logo or, ``judge``-d so, as a photo where its pieces draw it closer (``photo.agrees_better``,
     on the picture cast through float32 as ``batch.read_pictures`` casts it: the trace finds the palette kept)."""
     logo = smoothed(picture, noise) if noise > NOISE else picture
@@ -141,7 +141,7 @@ def _logo_or_photo(picture: np.ndarray, noise: float, figures: dict, piece: tupl
     return Reading("logo", logo, figures=figures)
 
 
-def _photo(picture: np.ndarray, figures: dict, piece: int, mark: int) -> Reading:  # ``Reading.speck``, ``marks``
+def _photo(picture: np.ndarray, figures: dict, piece: int, mark: float) -> Reading:  # ``Reading.speck``, ``marks``
     return Reading("photo", gaussian(picture, PHOTO_SIGMA), polish=False, figures=figures, speck=piece, marks=mark)
 
 

@@ -140,7 +140,7 @@ def two_tone(image: np.ndarray, bg: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 
 def trace(image: np.ndarray, colors: int | None = None, max_regions: int | None = None,
           seed: int = 0, kind: str = "", tone: tuple[np.ndarray, np.ndarray] | None = None,
-          speck: int = 0, marks: int = 0) -> list[Region]:
+          speck: int = 0, marks: float = 0.0) -> list[Region]:
     """The regions of ``image (H, W, 3)`` in [0, 1], back to front.
 
     Args:
@@ -151,7 +151,7 @@ def trace(image: np.ndarray, colors: int | None = None, max_regions: int | None 
         kind: what ``read.read`` read the picture as. ``"pixel"``: its exact colours traced
             along its pixel edges, whatever their number (at most ``MAX_HARD_COLORS``) or
             mixes; ``"photo"``: its pieces of one fine colour step, none under ``speck`` px but
-            marks of ``marks`` (``photo.pieces``), or with ``colors`` posterised to that many (``palette.posterize``).
+            marks standing out by ``marks`` (``photo.pieces``), or with ``colors`` posterised to that many (``palette.posterize``).
         tone: ``two_tone(image, background_color(image))`` where it is known (``read.read``).
     """
     image = np.asarray(image, dtype=np.float64)
