@@ -336,3 +336,19 @@ def test_a_small_icons_detail_is_not_smoothed_as_noise():
     assert noise_sigma(icon) > 0.012  # what the noise estimate makes of its texture
     r = read(icon)
     assert r.kind == "logo" and np.array_equal(r.picture, icon)
+
+
+def test_a_scanned_bold_silhouette_is_a_scan():
+    """A bold icon scanned or photographed can be mostly ink (Font Awesome's camera and house in
+    bench/realworld.py's scans: 62-68%): it is still ink on light paper, read as a scan, and comes out one black
+    shape. (Ink over half the picture read it as a photo of 600 paths from 4cdd3a6 to here.)"""
+    size = 200
+    clean = rasterize_svg(svg_of(f'<rect x="12" y="12" width="{size - 24}" height="{size - 24}" rx="30"/>'
+                                 '<circle cx="100" cy="100" r="25" fill="white"/>', size), size, size)
+    picture = scanned(clean)
+    assert (clean.mean(-1) < 0.5).mean() > 0.65
+    r = read(picture)
+    assert r.kind == "scan"
+    vec = api.vectorize(picture)
+    assert len(vec.shapes) == 1 and iou(rasterize_svg(vec.to_svg(), size, size).mean(-1) < 0.5,
+                                        clean.mean(-1) < 0.5) > 0.95

@@ -50,7 +50,7 @@ FRINGE_CHROMA, FRINGE_STEP, FRINGE_EDGE = 0.1, 0.15, 0.9  # sub-pixel text: colo
 SHADED = 0.02  # ink on paper has at most this share of in-between shades (``shaded_share``)
 BLACK_INK = 0.35  # ink of a scan darker than this (mean channel, after flattening) and ...
 NEUTRAL_INK = 0.12  # ... less colourful than this (channel spread) is black ink
-PAPER_LIGHT, INK_AT_MOST = (0.15, 0.5), 0.5  # a page as shot: paper's 5th percentile, median; ink's largest share
+PAPER_LIGHT, INK_AT_MOST = (0.15, 0.5), 0.9  # a page as shot: paper's 5th percentile, median; ink's largest share
 
 
 @dataclass(frozen=True)
@@ -345,8 +345,8 @@ def _is_two_tone(flat: np.ndarray, ink: np.ndarray, picture: np.ndarray, alpha: 
     """Whether the flattened picture is ink on paper: the ink's colour explains its dark pixels
     (few pixels far from the paper-ink line, each pixel's coverage read from its own, unsmoothed brightness),
     the ink stands out of the paper, and the paper of ``picture`` (where ``alpha``, the coverage, is under 0.5)
-    is light and the ground (``PAPER_LIGHT``, ``INK_AT_MOST``): a dim photo of dark lines (a retina's vessels),
-    a night sky or a black-to-white gradient is no page to whiten."""
+    is light and shows (``PAPER_LIGHT``, ``INK_AT_MOST``; a bold scanned icon is 60-70% ink): a dim photo of dark
+    lines (a retina's vessels), a night sky or a black-to-white gradient is no page to whiten."""
     paper, grey = alpha[::2, ::2] < 0.5, mean3(picture[::2, ::2])
     if ink.mean() > 0.75 or paper.mean() < 1 - INK_AT_MOST or (np.percentile(grey[paper], [5, 50]) < PAPER_LIGHT).any():
         return False
