@@ -49,7 +49,8 @@ def traced(image: np.ndarray, tol: float, colors: int | None = None, max_paths: 
     and whether the result is exact: a hard-edged picture's regions along its pixel edges,
     every side one straight segment, every corner sharp (nothing to fit or polish). ``kind``:
     what ``read.read`` read it as (``regions.trace``); ``tone``: its ink and coverage where it is
-    two-tone and ``read.read`` found them; ``speck``, ``marks``: a photo's smallest piece, and how much a smaller mark stands out."""
+    two-tone and ``read.read`` found them; ``speck``, ``marks``: a photo's smallest piece, and how much a
+    smaller mark stands out."""
     h, w, _ = image.shape
     regions = trace(image, colors, max_paths, kind=kind, tone=tone, speck=speck, marks=marks)
     if regions and all(r.exact for r in regions):

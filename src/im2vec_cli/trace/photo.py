@@ -56,7 +56,7 @@ def pieces(image: np.ndarray, min_px: int, mark_by: float = 0.0) -> tuple[np.nda
         lab = rgb2lab(gaussian(image, GRAIN_SIGMA))
         ids, n = equal_pieces(_steps(lab))
     ids, n = merged(ids, n, lab, min_px, mark_by)
-    while n > MAX_PIECES:
+    while n > MAX_PIECES:  # the bound holds over marks: no mark is kept past it
         min_px = min_px * n // MAX_PIECES + 1
         ids, n = merged(ids, n, lab, min_px)
     return _means(ids, n, image), ids

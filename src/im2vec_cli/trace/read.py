@@ -126,18 +126,18 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
     if preset == "photo" or (preset is None and looks_like_a_photo(picture)):
         return _photo(picture, figures, piece, mark)
     judge = preset is None and colors is None and not hard and h * w <= AGREE_PIXELS
-    return _logo_or_photo(picture, noise, figures, (piece, mark), judge)
+    return _logo_or_photo(picture, noise, figures, piece, mark, judge)
 
 
-def _logo_or_photo(picture: np.ndarray, noise: float, figures: dict, piece: tuple[int, float], judge: bool) -> Reading:
+def _logo_or_photo(picture: np.ndarray, noise: float, figures: dict, piece: int, mark: float, judge: bool) -> Reading:
     """A drawing read as a logo or, ``judge``-d so, as a photo where its pieces draw it closer (``photo.agrees_better``,
     on the picture cast through float32 as ``batch.read_pictures`` casts it: the trace finds the palette kept)."""
     logo = smoothed(picture, noise) if noise > NOISE else picture
     if judge:
-        better, agreement = agrees_better(logo.astype(np.float32).astype(np.float64), *piece)
+        better, agreement = agrees_better(logo.astype(np.float32).astype(np.float64), piece, mark)
         figures.update(agreement)
         if better:
-            return _photo(picture, figures, *piece)
+            return _photo(picture, figures, piece, mark)
     return Reading("logo", logo, figures=figures)
 
 

@@ -150,8 +150,8 @@ def trace(image: np.ndarray, colors: int | None = None, max_regions: int | None 
         max_regions: keep this many regions at most (the largest).
         kind: what ``read.read`` read the picture as. ``"pixel"``: its exact colours traced
             along its pixel edges, whatever their number (at most ``MAX_HARD_COLORS``) or
-            mixes; ``"photo"``: its pieces of one fine colour step, none under ``speck`` px but
-            marks standing out by ``marks`` (``photo.pieces``), or with ``colors`` posterised to that many (``palette.posterize``).
+            mixes; ``"photo"``: its pieces of one fine colour step, none under ``speck`` px but marks standing
+            out by ``marks`` (``photo.pieces``), or with ``colors`` posterised to that many (``palette.posterize``).
         tone: ``two_tone(image, background_color(image))`` where it is known (``read.read``).
     """
     image = np.asarray(image, dtype=np.float64)
