@@ -51,6 +51,66 @@ def test_a_shape_path_ops_fail_on_is_kept_not_a_crash(monkeypatch):
     assert len(out.shapes) == 1 and np.array_equal(out.shapes[0].contours[0], looped.contours[0])
 
 
+# A 32 px key's 1 px frame as polished (Tango's accessories-character-map at 32 px, issue 69): the outer contour
+# and the hole's, nearly coincident and crossing. Skia's simplify under nonzero returned the frame's box filled.
+FRAME = [[4.78, 28.32], [4.38, 28.2], [4.71, 27.18], [4.18, 26.98], [3.68, 26.79], [3.35, 26.37], [3.72, 25.13],
+         [3.94, 24.41], [3.95, 19.28], [3.86, 14.18], [3.77, 9.53], [3.69, 4.55], [4.33, 4.08], [4.7, 3.81],
+         [4.74, 3.17], [5.26, 3.16], [5.94, 3.14], [5.98, 2.96], [5.96, 2.54], [5.94, 2.19], [11.52, 2.59],
+         [16.66, 2.45], [22.57, 2.3], [26.86, 2.34], [26.93, 2.92], [26.96, 3.2], [27.71, 3.59], [28.09, 4.03],
+         [28.37, 4.34], [28.17, 4.69], [28.15, 5.12], [28.12, 5.75], [28.43, 11.24], [28.41, 17.29], [28.39, 22.9],
+         [28.6, 28.13], [28.33, 28.2], [26.98, 28.54], [22.36, 29.24], [17.17, 29.15], [10.67, 29.04], [5.92, 28.65]]
+HOLE = [[28.39, 4.39], [27.67, 3.99], [27.05, 3.9], [26.89, 3.46], [26.74, 3.07], [26.42, 2.84], [26.08, 2.84],
+        [23.92, 2.86], [18.76, 3.0], [13.77, 2.9], [8.8, 2.81], [4.64, 2.37], [5.16, 2.7], [5.34, 2.82], [4.81, 3.35],
+        [4.46, 3.63], [4.1, 3.92], [3.76, 4.17], [3.59, 4.23], [3.11, 4.41], [3.45, 9.95], [3.46, 15.0],
+        [3.47, 21.19], [3.35, 26.97], [3.69, 27.19], [4.36, 27.61], [5.93, 28.51], [8.54, 28.39], [10.57, 28.3],
+        [13.13, 28.42], [14.36, 28.46], [16.81, 28.55], [18.83, 28.34], [20.72, 28.45], [22.93, 28.57],
+        [25.02, 28.29], [26.61, 28.1], [26.89, 28.07], [27.37, 27.89], [27.55, 27.47], [27.8, 26.93], [27.86, 26.59],
+        [27.87, 26.54], [28.78, 22.52], [28.52, 19.4], [28.44, 15.71], [28.35, 11.92], [28.93, 7.54]]
+
+
+def test_a_thin_frame_path_ops_fill_in_keeps_its_hole():
+    """Path ops fail without a word on the polished 1 px frame (its box comes back filled): that outline is
+    refused (``fills_alike``) and the shape kept as it is, its hole open, as cairo draws it."""
+    import pathops
+
+    from im2vec_cli.trace.untangle import fills_alike
+    from im2vec_cli.vector import skia
+
+    frame = [np.asarray(FRAME, float), np.asarray(HOLE, float)]
+    assert crosses(frame)
+    filled = skia.contours(pathops.simplify(skia.to_path([skia.contour_chain(c) for c in frame]), fix_winding=True))
+    assert not fills_alike(frame, "nonzero", filled)  # what path ops give: the box filled
+    vec = VectorImage(32, 32, [VectorShape(frame, (0, 0, 0), "nonzero")])
+    out = untangle(vec)
+    before, after = ink(vec.to_svg(), 4), ink(out.to_svg(), 4)
+    assert not before[40:88, 40:88].any()  # cairo draws a frame: the middle is empty
+    assert (before != after).sum() == 0
+
+
+def test_fills_alike_agrees_with_matplotlib_on_points_inside():
+    """``_winding``'s inside points against matplotlib's ``Path.contains_points`` (an independent
+    point-in-polygon test) on a square with a square hole, under both rules, and ``fills_alike``
+    tells the holed square from the plain one."""
+    from matplotlib.path import Path as MplPath
+
+    from im2vec_cli.raster.curves import flatten_ring
+    from im2vec_cli.trace.untangle import _winding, fills_alike
+
+    outer, hole = _lines([[0, 0], [40, 0], [40, 40], [0, 40]]), _lines([[10, 10], [10, 30], [30, 30], [30, 10]])
+    same_way = _lines([[10, 10], [30, 10], [30, 30], [10, 30]])
+    pts = np.random.default_rng(0).uniform(-5, 45, (500, 2))
+    in_outer, in_inner = (MplPath(flatten_ring(c, 8)).contains_points(pts) for c in (outer, hole))
+    for inner in (hole, same_way):
+        wind = _winding(pts, [outer, inner])
+        for rule, inside in (("evenodd", wind % 2 == 1), ("nonzero", wind != 0)):
+            holed = rule == "evenodd" or inner is hole  # nonzero with the inner contour turning the outer's way: filled
+            assert np.array_equal(inside, in_outer & ~in_inner if holed else in_outer), (rule, inner is hole)
+    assert fills_alike([outer, hole], "nonzero", [outer, hole])
+    assert not fills_alike([outer, hole], "nonzero", [outer])
+    assert fills_alike([outer, same_way], "evenodd", [outer, hole]) and not fills_alike([outer, same_way], "nonzero",
+                                                                                      [outer, hole])
+
+
 def _crosses_everywhere(contours, samples=16) -> bool:
     """The reference: every pair of polyline edges tested at once (not neighbours along one contour)."""
     from im2vec_cli.raster.curves import flatten_ring

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..raster.curves import flatten_cubics
+from ..raster.curves import flatten_cubics, flatten_ring, ring_area
 from ..vector import VectorImage, VectorShape, skia
 from .ndops import run_places
 from .simplify import simplify_contours
@@ -37,17 +37,64 @@ def untangle(vec: VectorImage, merge_tol: float = 0.25) -> VectorImage:
 
 def _outline(sh: VectorShape, snap: float = 1 / 256) -> list[np.ndarray] | None:
     """The exact outline of what ``sh`` fills, as contours; ``None`` when path ops fail on it
-    as it is and with its points snapped to a ``snap`` px grid."""
+    as it is and with its points snapped to a ``snap`` px grid. Path ops can fail without a word on
+    nearly coincident curves (a polished 1 px ring whose hole came back filled: issue 69), so an
+    outline that fills other points than ``sh`` does (``fills_alike``) counts as a failure."""
     import pathops
 
     for grid in (None, snap):
         cs = sh.contours if grid is None else [np.round(np.asarray(c) / grid) * grid for c in sh.contours]
         path = skia.to_path([skia.contour_chain(c) for c in cs], sh.fill_rule)
         try:
-            return skia.contours(pathops.simplify(path, fix_winding=True, keep_starting_points=True))
+            out = skia.contours(pathops.simplify(path, fix_winding=True, keep_starting_points=True))
         except pathops.PathOpsError:
             continue
+        if fills_alike(sh.contours, sh.fill_rule, out):
+            return out
     return None
+
+
+CHECK_SIDE = 48  # points a side of the grid over a shape's box at which an outline is checked against the shape...
+CHECK_SHARE = 0.01  # ...which may disagree at this share of them (points on a boundary, read from polylines)
+CHECK_EDGES = 1 << 21  # point-edge pairs at once
+
+
+def fills_alike(contours: list[np.ndarray], rule: str, outline: list[np.ndarray]) -> bool:
+    """Whether ``outline`` (nonzero) fills what closed cubic ``contours`` fill under ``rule`` at a
+    ``CHECK_SIDE`` grid of points over their box, but for ``CHECK_SHARE`` of them; at once where their
+    signed areas add up alike (within ``CHECK_SHARE``: the contours turn as their nesting says)."""
+    cs = [np.asarray(c, dtype=np.float64) for c in contours if len(c)]
+    if not cs:
+        return not outline
+    areas = [abs(sum(float(ring_area(flatten_ring(c, 8))) for c in group)) for group in (cs, outline)]
+    if abs(areas[0] - areas[1]) <= CHECK_SHARE * max(areas) + 0.5:
+        return True
+    pts = np.concatenate(cs)
+    lo, hi = pts.min(0), pts.max(0)
+    t = (np.arange(CHECK_SIDE) + 0.5) / CHECK_SIDE
+    grid = np.stack(np.meshgrid(lo[0] + t * (hi[0] - lo[0]), lo[1] + t * (hi[1] - lo[1])), -1).reshape(-1, 2)
+    wind = _winding(grid, cs)
+    inside = (wind % 2 == 1) if rule == "evenodd" else (wind != 0)
+    return bool((inside != (_winding(grid, outline) != 0)).mean() <= CHECK_SHARE)
+
+
+def _winding(points: np.ndarray, contours: list[np.ndarray], samples: int = 8) -> np.ndarray:
+    """The winding number ``(M,)`` of each point of ``points (M, 2)`` about closed cubic ``contours``, their
+    polylines at ``samples`` lines a cubic."""
+    rings = [flatten_ring(np.asarray(c, dtype=np.float64), samples) for c in contours if len(c)]
+    if not rings:
+        return np.zeros(len(points), dtype=np.int64)
+    a = np.concatenate(rings)
+    b = np.concatenate([np.roll(r, -1, 0) for r in rings])
+    wind = np.zeros(len(points), dtype=np.int64)
+    step = max(1, CHECK_EDGES // max(len(points), 1))
+    px, py = points[:, :1], points[:, 1:]
+    for i in range(0, len(a), step):
+        (x0, y0), (x1, y1) = a[i : i + step].T, b[i : i + step].T
+        left = (x1 - x0) * (py - y0) - (px - x0) * (y1 - y0)  # (M, E): > 0 where the point is left of the edge
+        up, down = (y0 <= py) & (y1 > py), (y1 <= py) & (y0 > py)
+        wind += (up & (left > 0)).sum(1) - (down & (left < 0)).sum(1)
+    return wind
 
 
 SWEEP_BAND = 8  # px: edges are swept along x within bands of this height (an edge in each band it enters), so that
