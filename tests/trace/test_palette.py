@@ -192,3 +192,27 @@ def test_a_stroke_whose_pixels_meet_at_corners_is_not_specks():
     palette, labels = quantize(pic, None)
     black = int(np.argmin(np.linalg.norm(palette, axis=1)))
     assert (labels[idx, idx] == black).all()
+
+
+def test_a_small_icons_two_pixel_fill_keeps_its_own_colour():
+    """A 22 px toolbar icon (Tango's list-add): a 1 px outline round a fill two pixels wide, of a
+    tint of the outline's colour shaded along the arm. No pixel of the fill has a flat 3x3, so
+    before the 2x2 blocks (``palette.SMALL_FLAT``) the fill took white or the outline's colour.
+    Now it keeps a colour of its own, within 0.06 of its true mean, and every fill pixel has it."""
+    from im2vec_cli.trace.palette import SMALL_FLAT
+
+    outline, tint = np.array([52, 101, 164]) / 255, np.array([160, 190, 224]) / 255
+    img = np.ones((22, 22, 3))
+    arm = np.zeros((22, 22), dtype=bool)
+    arm[4:18, 9:13] = arm[9:13, 4:18] = True  # the cross, 4 px wide
+    fill = np.zeros_like(arm)
+    fill[5:17, 10:12] = fill[10:12, 5:17] = True  # its inside, 2 px wide
+    img[arm] = outline
+    shade = np.linspace(-0.03, 0.03, 22)[None, :, None]  # a shading along x, as Tango's gradients
+    img[fill] = np.broadcast_to(tint + shade, img.shape)[fill]
+    assert img.shape[0] * img.shape[1] <= SMALL_FLAT
+    palette, labels = quantize(img, None)
+    own = np.linalg.norm(palette - tint, axis=1).argmin()
+    assert np.linalg.norm(palette[own] - tint) < 0.06
+    assert (labels[fill] == own).all()
+    assert (labels[arm & ~fill] != own).all()  # and the outline keeps its own

@@ -107,6 +107,8 @@ def _quantize(image: np.ndarray, colors: int | None, seed: int = 0, max_colors: 
 
     h, w, _ = image.shape
     flat = _flat_pixels(image)
+    if h * w <= SMALL_FLAT:
+        flat |= _flat_blocks(image)
     pool = image[flat] if flat.sum() >= 16 else image.reshape(-1, 3)
     rng = np.random.default_rng(seed)
     if len(pool) > 20000:
@@ -325,6 +327,20 @@ def _flat_pixels(image: np.ndarray) -> np.ndarray:
     if h * w > FLAT_BY_LEVELS:  # on 8-bit levels (0.06 is 15.3 of them): a quarter of the memory traffic
         im, tol = np.round(image * 255).astype(np.uint8), 15
     return ((_extreme3(im, np.maximum) - im <= tol) & (im - _extreme3(im, np.minimum) <= tol)).all(-1)
+
+
+SMALL_FLAT = 48 * 48  # a picture this small has fills too narrow for a flat 3x3: 2x2 blocks of one colour count
+
+
+def _flat_blocks(image: np.ndarray, tol: float = 0.06) -> np.ndarray:
+    """``(H, W)`` bool: pixels of a 2x2 block whose pixels are within ``tol`` of each other in every channel."""
+    blocks = np.stack([image[:-1, :-1], image[1:, :-1], image[:-1, 1:], image[1:, 1:]])
+    ok = (np.ptp(blocks, axis=0) <= tol).all(-1)
+    out = np.zeros(image.shape[:2], dtype=bool)
+    for dy in (0, 1):
+        for dx in (0, 1):
+            out[dy : dy + ok.shape[0], dx : dx + ok.shape[1]] |= ok
+    return out
 
 
 def _extreme3(a: np.ndarray, op) -> np.ndarray:
