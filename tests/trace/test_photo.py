@@ -70,6 +70,15 @@ def test_noise_is_merged_down_to_the_bound(monkeypatch):
     assert 1 < len(colours) <= 50 and equal_pieces(ids)[1] == len(colours)
 
 
+def test_a_photo_never_has_more_pieces_than_are_traced():
+    """The photo's bound on pieces is within the trace's bound on regions: at 12,000 pieces a painting
+    (OpenCV's starry_night.jpg, 11,511 pieces) failed with "more than the 10,000 im2vec traces"."""
+    from im2vec_cli.trace.photo import MAX_PIECES
+    from im2vec_cli.trace.regions import MAX_REGIONS
+
+    assert MAX_PIECES <= MAX_REGIONS
+
+
 def drawing(size: int = 160, shaded: bool = False) -> np.ndarray:
     """Three overlapping discs on white, anti-aliased (4x supersampled); ``shaded``: each lit from
     its top left, a smooth radial gradient from its colour to white."""

@@ -30,8 +30,8 @@ GREY_PHOTO_SHARE = 0.35  # a grey picture whose 16 commonest 8-bit grey levels c
 # a channel leave a grey picture 16 colours in all): grey photos 0.16-0.24, grey drawings, icons and diagrams
 # 0.44-1.0 in bench/wild.py's pictures (a rendered clock's shading 0.44)
 GREY_SPREAD = 0.04  # a pixel whose channels are within this of each other is grey
-PHOTO_SIGMA = 0.5  # px: a photo's blur before it is cut into pieces (bench/wild.py's 17 tuned photos: edge F1
-# 0.79 at 0.7 px, 0.82 at 0.5 px, 0.82 with none, but 20% more paths)
+PHOTO_SIGMA = 0.3  # px: a photo's blur before it is cut into pieces (bench/wild.py's 17 tuned photos, at most 9000
+# pieces: 15 of 17 at or above both peers at 0.3 px, 14 with none (an apple's skin cut into specks), 13 at 0.5 px)
 AGREE_MARGIN = 0.03  # edge F1 by which a drawing's pieces must agree better with it than its palette's regions
 # (bench/wild.py's tuned drawings: 0.04-0.33 better where the pieces' trace was at or above both peers and the
 # palette's was not; a 100 px star 0.30 better where the palette's trace was already exact)
@@ -39,8 +39,9 @@ AGREE_PIXELS = 1024 * 1024  # a larger drawing is not judged (a quantise and a c
 # on a 2100 px diagram; an area-averaged copy blurs thin lines and misjudges diagrams)
 GRAIN_PIECES = 0.75  # pieces of one step per pixel above which a picture is noise (RGB noise 0.99; the most
 GRAIN_SIGMA = 2.0  # px: textured of bench/wild.py's photos, fur and a painting, 0.49): cut after this blur
-MAX_PIECES = 6000  # a photo of more pieces (grain, noise) has its smallest merged until it has no more: the 17
-# tuned photos of bench/wild.py have 600-7700 at 4 px; vtracer draws 1,400-6,000 paths on them
+MAX_PIECES = 9000  # a photo of more pieces (grain, noise) has its smallest merged until it has no more: the 17
+# tuned photos of bench/wild.py have 500-7,500 at 4 px (fur and a circuit board lost their detail at 6,000); vtracer
+# draws 300-6,100 paths on them. At most regions.MAX_REGIONS
 
 
 def pieces(image: np.ndarray, min_px: int, mark_by: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
