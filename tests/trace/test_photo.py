@@ -106,6 +106,28 @@ def test_shading_is_drawn_by_pieces_and_flat_colours_by_a_palette():
     assert read(shaded, colors=6).kind == "logo"  # and so is --colors: a palette of 6, not judged
 
 
+def test_a_large_drawing_is_judged_on_its_busiest_window(monkeypatch):
+    """A drawing of more than ``AGREE_PIXELS`` pixels was never judged (always a logo): a
+    1512 px screenshot's anti-aliased text came out as 48 flat paths. It is now judged on its
+    window with the most edges, which holds the detail wherever it lies: the shaded discs, set in
+    the corner of a large white page, are read as a photo as they are alone."""
+    import im2vec_cli.trace.photo as photo
+    from im2vec_cli.trace.read import read
+
+    monkeypatch.setattr(photo, "AGREE_PIXELS", 200 * 200)  # a small bound, so that the test stays quick
+    page = np.ones((300, 500, 3))
+    page[130:290, 330:490] = drawing(shaded=True)  # the detail in the bottom right corner
+    window = photo.busiest_window(page)
+    assert window.shape[0] * window.shape[1] <= 200 * 200
+    assert window.shape[:2] == (200, 200) and (window < 0.9).sum() == (page < 0.9).sum()  # all the discs in it
+    band = photo.busiest_window(np.ones((100, 900, 3)))  # a narrow picture: a band as tall as it is
+    assert band.shape[:2] == (100, 400)
+    assert photo.busiest_window(page[:150, :200]) is not None and photo.busiest_window(page[:150, :200]).shape == (
+        150, 200, 3)  # small enough: the whole picture
+    reading = read(page)
+    assert reading.kind == "photo" and "photo_edges" in reading.figures
+
+
 def test_edge_agreement():
     pic = drawing()
     assert edge_agreement(pic, pic) == 1.0

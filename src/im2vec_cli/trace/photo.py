@@ -35,8 +35,9 @@ PHOTO_SIGMA = 0.3  # px: a photo's blur before it is cut into pieces (bench/wild
 AGREE_MARGIN = 0.03  # edge F1 by which a drawing's pieces must agree better with it than its palette's regions
 # (bench/wild.py's tuned drawings: 0.04-0.33 better where the pieces' trace was at or above both peers and the
 # palette's was not; a 100 px star 0.30 better where the palette's trace was already exact)
-AGREE_PIXELS = 1024 * 1024  # a larger drawing is not judged (a quantise and a cut: about 1 s a megapixel, 6 s
-# on a 2100 px diagram; an area-averaged copy blurs thin lines and misjudges diagrams)
+AGREE_PIXELS = 1024 * 1024  # a larger drawing is judged on its window of this many pixels with the most edges (a
+# quantise and a cut: about 1 s a megapixel, 6 s on a 2100 px diagram; an area-averaged copy blurs thin lines)
+WINDOW_STEPS = 8  # the window is sought at this many steps across and down
 GRAIN_PIECES = 0.75  # pieces of one step per pixel above which a picture is noise (RGB noise 0.99; the most
 GRAIN_SIGMA = 2.0  # px: textured of bench/wild.py's photos, fur and a painting, 0.49): cut after this blur
 MAX_PIECES = 9000  # a photo of more pieces (grain, noise) has its smallest merged until it has no more: the 17
@@ -167,6 +168,7 @@ def agrees_better(picture: np.ndarray, min_px: int, mark_by: float = 0.0, seed: 
     from .ndops import gaussian
     from .palette import quantize
 
+    picture = busiest_window(picture)
     palette, labels = quantize(picture, None, seed)
     logo = palette[labels]
     edges = {"logo_edges": edge_agreement(picture, logo)}
@@ -180,17 +182,42 @@ def agrees_better(picture: np.ndarray, min_px: int, mark_by: float = 0.0, seed: 
     return bool(better), {k: round(v, 3) for k, v in edges.items()}
 
 
+def busiest_window(picture: np.ndarray) -> np.ndarray:
+    """``picture (H, W, 3)`` itself where it has at most ``AGREE_PIXELS`` pixels, else its square
+    window of that many (or a band as wide as a narrow picture), at one of ``WINDOW_STEPS`` + 1
+    places each way, with the most Canny edges (``edge_agreement``'s): a screenshot's text, a plot's
+    marks, where a cut and a palette differ."""
+    h, w, _ = picture.shape
+    if h * w <= AGREE_PIXELS:
+        return picture
+    side = int(AGREE_PIXELS**0.5)
+    sh, sw = (min(h, side), min(w, side)) if min(h, w) >= side else (h, AGREE_PIXELS // h) if h < w else (
+        AGREE_PIXELS // w, w)
+    sums = np.pad(_edges(picture).cumsum(0, dtype=np.int64).cumsum(1), ((1, 0), (1, 0)))
+    ys = np.unique(np.linspace(0, h - sh, WINDOW_STEPS + 1).round().astype(int))
+    xs = np.unique(np.linspace(0, w - sw, WINDOW_STEPS + 1).round().astype(int))
+    y, x = ys[:, None], xs[None, :]
+    counts = sums[y + sh, x + sw] - sums[y, x + sw] - sums[y + sh, x] + sums[y, x]
+    i, j = np.unravel_index(np.argmax(counts), counts.shape)
+    return picture[ys[i] : ys[i] + sh, xs[j] : xs[j] + sw]
+
+
+def _edges(rgb: np.ndarray) -> np.ndarray:
+    """Canny's edges of ``rgb (H, W, 3)`` in [0, 1] on grey blurred by a Gaussian of 1 px, thresholds 50 and 150 of
+    255 (bench/wild.py's)."""
+    import cv2
+
+    grey = cv2.cvtColor((np.clip(rgb, 0, 1) * 255).round().astype(np.uint8), cv2.COLOR_RGB2GRAY)
+    return cv2.Canny(cv2.GaussianBlur(grey, (0, 0), 1.0), 50, 150) > 0
+
+
 def edge_agreement(picture: np.ndarray, drawn: np.ndarray, within: float = 1.5) -> float:
     """F1 of the edges of ``drawn`` against those of ``picture`` (both ``(H, W, 3)`` in [0, 1]):
     Canny's (on grey blurred by a Gaussian of 1 px, thresholds 50 and 150 of 255), an edge found
     where the other has one within ``within`` px; 1 where neither has any (bench/wild.py's score)."""
     import cv2
 
-    def found(rgb: np.ndarray) -> np.ndarray:
-        grey = cv2.cvtColor((np.clip(rgb, 0, 1) * 255).round().astype(np.uint8), cv2.COLOR_RGB2GRAY)
-        return cv2.Canny(cv2.GaussianBlur(grey, (0, 0), 1.0), 50, 150) > 0
-
-    a, b = found(picture), found(drawn)
+    a, b = _edges(picture), _edges(drawn)
     if not a.any() or not b.any():
         return float(a.any() == b.any())
     near_a = cv2.distanceTransform((~a).astype(np.uint8), cv2.DIST_L2, 5) <= within

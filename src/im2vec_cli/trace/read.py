@@ -23,7 +23,7 @@ import numpy as np
 from ..options import PRESETS
 from .ndops import gaussian, mean3, norm3, rgb_keys, spread3
 from .palette import MAX_HARD_COLORS, hard_palette
-from .photo import AGREE_PIXELS, MARK_GRAINY, MARK_RENDERED, PHOTO_SIGMA, agrees_better, looks_like_a_photo
+from .photo import MARK_GRAINY, MARK_RENDERED, PHOTO_SIGMA, agrees_better, looks_like_a_photo
 from .regions import background_color, two_tone
 
 KINDS = PRESETS[1:]  # the kinds of picture: options.PRESETS but "auto"
@@ -125,7 +125,7 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
     mark = (MARK_RENDERED if noise <= GRAIN else MARK_GRAINY) if speckle is None else 0.0  # text, dots
     if preset == "photo" or (preset is None and looks_like_a_photo(picture)):
         return _photo(picture, figures, piece, mark)
-    judge = preset is None and colors is None and not hard and h * w <= AGREE_PIXELS
+    judge = preset is None and colors is None and not hard  # (a large drawing on a window: ``busiest_window``)
     return _logo_or_photo(picture, noise, figures, piece, mark, judge)
 
 
