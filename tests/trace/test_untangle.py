@@ -101,7 +101,7 @@ def test_fills_alike_agrees_with_matplotlib_on_points_inside():
     pts = np.random.default_rng(0).uniform(-5, 45, (500, 2))
     in_outer, in_inner = (MplPath(flatten_ring(c, 8)).contains_points(pts) for c in (outer, hole))
     for inner in (hole, same_way):
-        wind = _winding(pts, [outer, inner])
+        wind = _winding(pts, [flatten_ring(c, 8) for c in (outer, inner)])
         for rule, inside in (("evenodd", wind % 2 == 1), ("nonzero", wind != 0)):
             holed = rule == "evenodd" or inner is hole  # nonzero with the inner contour turning the outer's way: filled
             assert np.array_equal(inside, in_outer & ~in_inner if holed else in_outer), (rule, inner is hole)

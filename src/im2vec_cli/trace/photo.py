@@ -191,8 +191,7 @@ def busiest_window(picture: np.ndarray) -> np.ndarray:
     if h * w <= AGREE_PIXELS:
         return picture
     side = int(AGREE_PIXELS**0.5)
-    sh, sw = (min(h, side), min(w, side)) if min(h, w) >= side else (h, AGREE_PIXELS // h) if h < w else (
-        AGREE_PIXELS // w, w)
+    sh, sw = min(h, max(side, AGREE_PIXELS // w)), min(w, max(side, AGREE_PIXELS // h))
     sums = np.pad(_edges(picture).cumsum(0, dtype=np.int64).cumsum(1), ((1, 0), (1, 0)))
     ys = np.unique(np.linspace(0, h - sh, WINDOW_STEPS + 1).round().astype(int))
     xs = np.unique(np.linspace(0, w - sw, WINDOW_STEPS + 1).round().astype(int))

@@ -66,22 +66,22 @@ def fills_alike(contours: list[np.ndarray], rule: str, outline: list[np.ndarray]
     cs = [np.asarray(c, dtype=np.float64) for c in contours if len(c)]
     if not cs:
         return not outline
-    areas = [abs(sum(float(ring_area(flatten_ring(c, 8))) for c in group)) for group in (cs, outline)]
+    shape, out = ([flatten_ring(np.asarray(c, dtype=np.float64), 8) for c in g if len(c)] for g in (cs, outline))
+    areas = [abs(sum(float(ring_area(r)) for r in rings)) for rings in (shape, out)]
     if abs(areas[0] - areas[1]) <= CHECK_SHARE * max(areas) + 0.5:
         return True
     pts = np.concatenate(cs)
     lo, hi = pts.min(0), pts.max(0)
     t = (np.arange(CHECK_SIDE) + 0.5) / CHECK_SIDE
     grid = np.stack(np.meshgrid(lo[0] + t * (hi[0] - lo[0]), lo[1] + t * (hi[1] - lo[1])), -1).reshape(-1, 2)
-    wind = _winding(grid, cs)
+    wind = _winding(grid, shape)
     inside = (wind % 2 == 1) if rule == "evenodd" else (wind != 0)
-    return bool((inside != (_winding(grid, outline) != 0)).mean() <= CHECK_SHARE)
+    return bool((inside != (_winding(grid, out) != 0)).mean() <= CHECK_SHARE)
 
 
-def _winding(points: np.ndarray, contours: list[np.ndarray], samples: int = 8) -> np.ndarray:
-    """The winding number ``(M,)`` of each point of ``points (M, 2)`` about closed cubic ``contours``, their
-    polylines at ``samples`` lines a cubic."""
-    rings = [flatten_ring(np.asarray(c, dtype=np.float64), samples) for c in contours if len(c)]
+def _winding(points: np.ndarray, rings: list[np.ndarray]) -> np.ndarray:
+    """The winding number ``(M,)`` of each point of ``points (M, 2)`` about closed polylines ``rings`` (each
+    ``(V, 2)``, its last vertex joined to its first)."""
     if not rings:
         return np.zeros(len(points), dtype=np.int64)
     a = np.concatenate(rings)
