@@ -100,7 +100,7 @@ class Plan:
     # polygon lets the fit bend the true curve away from the edge (IoU@4x 0.972 with the model's 4)
     # clean outlines (``refine.clean.clean_outlines``)
     tolerance: float = 0.5  # cubics fitted within this many input px of the traced/united ring
-    outline_steps: int = 40  # points (and colours) polished against the input (0: not polished)...
+    outline_steps: int = 40  # points and colours polished against the input, colours then solved (0: none)...
     outline_tau: float = 0.3  # ...from this edge softness, annealed to tau_end
     split_error: float = 0.01  # then segments along which the render is still this wrong (MSE) are halved and
     # the polish repeated (0: never)

@@ -150,6 +150,7 @@ class _Pool:
             return 0
         workers = list((getattr(self.executor, "_processes", None) or {}).values())
         died = next((-w.exitcode for w in workers if w.exitcode is not None and w.exitcode < 0), 0)
+        manager = getattr(self.executor, "_executor_manager_thread", None)  # shutdown forgets it
         self.executor.shutdown(wait=graceful, cancel_futures=not graceful)
         if not graceful:
             for w in workers:
@@ -157,6 +158,8 @@ class _Pool:
                     w.terminate()
             for w in workers:
                 w.join(5)
+            if manager is not None:  # it closes the pool's wakeup pipe as it ends: waited for, else the exit's
+                manager.join(5)  # own wakeup of that thread can race the close ("Bad file descriptor", Python 3.11)
         self.executor = None
         return died
 

@@ -42,3 +42,34 @@ def test_the_stage_list_without_a_renderer_imports_no_torch():
             "v, _ = trace_alone([read(p)], [(300, 300)], Plan())[0]; assert v.shapes; print('torch' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_solved_colours_are_those_a_viewer_shows():
+    """Colours are solved against the pixels cairosvg draws (an independent renderer) from wrong starting colours; a
+    shape hidden under another keeps its own."""
+    import numpy as np
+
+    from im2vec_cli.refine.clean import solved_colors
+    from im2vec_cli.vector import VectorImage, VectorShape
+
+    def box(x0, y0, x1, y1):  # a closed cubic path of 4 straight segments
+        corners = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], dtype=float)
+        return np.concatenate([np.stack([a, a + (b - a) / 3, a + 2 * (b - a) / 3]) for a, b in
+                               zip(corners, np.roll(corners, -1, 0))])
+
+    ring = [box(4, 4, 28, 28), box(10, 10, 22.5, 22.5)[::-1]]  # a square with a hole, edges off the pixel grid
+    truth = VectorImage(32, 32, [VectorShape([box(0, 0, 32, 32)], (0.9, 0.95, 1.0)),
+                                 VectorShape([box(11, 11, 21, 21)], (0.1, 0.8, 0.2)),  # in the ring's hole
+                                 VectorShape(ring, (0.2, 0.4, 0.64), "evenodd"),
+                                 VectorShape([box(13, 13, 19, 19)], (0.3, 0.3, 0.3))])  # (a few px: pulled to its own)
+    picture = rasterize_svg(truth.to_svg(decimals=3), 32, 32)
+    wrong = VectorImage(32, 32, [VectorShape(s.contours, (0.5, 0.5, 0.5), s.fill_rule) for s in truth.shapes])
+    got = solved_colors(wrong, picture)
+    for s, t in zip(got.shapes, truth.shapes):  # within 3 levels of 255: 8-bit pixels, the ridge's pull
+        assert np.abs(np.array(s.color) - t.color).max() < 3 / 255, (s.color, t.color)
+    hidden = VectorImage(32, 32, [*truth.shapes, VectorShape([box(0, 0, 32, 32)], (0.0, 0.0, 0.0)),
+                                  VectorShape([box(2, 2, 6, 6)], (0.7, 0.1, 0.1))])
+    hidden.shapes[0] = VectorShape(hidden.shapes[0].contours, (0.25, 0.5, 0.75))  # under the black page: unseen
+    got = solved_colors(hidden, rasterize_svg(hidden.to_svg(decimals=3), 32, 32))
+    assert np.abs(np.array(got.shapes[0].color) - (0.25, 0.5, 0.75)).max() < 0.02
+    assert np.abs(np.array(got.shapes[-1].color) - (0.7, 0.1, 0.1)).max() < 3 / 255

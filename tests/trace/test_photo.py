@@ -186,3 +186,49 @@ def test_a_mark_is_darker_or_lighter_than_all_it_touches_and_an_edges_mix_is_not
     a = np.array([p for p, q in touching] + [q for p, q in touching])
     b = np.array([q for p, q in touching] + [p for p, q in touching])
     assert marks(lum, a, b, 3.0).tolist() == [True, False, False, True, True]  # paper too (large: never merged)
+
+
+def tinted_plus(size: int = 22) -> np.ndarray:
+    """``(size, size, 3)``: a plus drawn as Tango draws a 22 px icon: a 1 px mid-blue outline, anti-aliased outside,
+    around a 2 px light fill that is a tint of the outline's blue (on the white-blue line: it looks two-tone)."""
+    ink, white = np.array([52, 101, 164]) / 255, np.ones(3)
+    mask = np.zeros((size, size), dtype=bool)
+    c = size // 2
+    mask[c - 2 : c + 2, 3 : size - 3] = True  # the arms with their outline: 4 px wide
+    mask[3 : size - 3, c - 2 : c + 2] = True
+    fill = ndi.binary_erosion(mask, np.ones((3, 3)))  # 2 px wide inside a 1 px outline
+    image = np.ones((size, size, 3))
+    image[ndi.binary_dilation(mask) & ~mask] = white + 0.2 * (ink - white)  # its outer edge anti-aliased
+    image[mask] = ink
+    image[fill] = white + 0.35 * (ink - white)
+    return image
+
+
+def test_a_small_icons_tint_is_a_fill_of_its_own_not_an_edge():
+    from im2vec_cli.trace import background_color, read, two_tone
+    from im2vec_cli.trace.photo import tints_agree_better
+
+    plus = tinted_plus()
+    tone = two_tone(plus, background_color(plus))
+    assert tone is not None  # it looks two-tone: every pixel on the white-blue line
+    assert tints_agree_better(plus, background_color(plus), *tone)
+    reading = read(plus)
+    assert reading.palette and reading.tone is None
+    svg = api.vectorize(plus).to_svg()
+    back = rasterize_svg(svg, 22, 22)
+    c = 11
+    fill = back[c - 1 : c + 1, c - 1 : c + 1]  # where the arms cross: drawn nearer its tint than the white around
+    assert (np.linalg.norm(fill - plus[c, c], axis=-1) < np.linalg.norm(fill - 1, axis=-1)).all(), fill
+    assert np.abs(back[c, 3] - plus[c, 3]).max() < 0.05  # the outline's blue at the left arm's end (was 0.15 off)
+
+
+@pytest.mark.parametrize("size", [24, 48, 64])
+def test_an_anti_aliased_glyph_stays_two_tone(size):
+    from im2vec_cli.trace import background_color, read, two_tone
+    from im2vec_cli.trace.photo import tints_agree_better
+    from tests.trace.test_read import drawing
+
+    glyph = drawing(size)
+    tone = two_tone(glyph, background_color(glyph))
+    assert tone is not None and not tints_agree_better(glyph, background_color(glyph), *tone)
+    assert read(glyph).tone is not None and not read(glyph).palette

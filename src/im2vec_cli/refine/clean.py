@@ -6,11 +6,12 @@ pipeline: segment -> fit -> composite -> optimise -> write), over ``trace``'s st
 2. ``choose``: of two starts, the one nearer the picture, both fitted at ``trace.CHOICE_TOLERANCE``;
 3. fit: the chosen start's rings fitted with cubics within ``tolerance`` px (``trace.Start.outline``);
 4. ``polish``: points and colours through the renderer (``Refinement.polish_outline``), smooth
-   joins kept smooth; not an exact outline (a hard-edged picture's pixel edges) nor one of more
-   than ``polish_segments`` segments;
+   joins kept smooth; not an exact outline (a hard-edged picture's pixel edges) nor
+   one of more than ``polish_segments`` segments;
 5. ``split_and_polish``: segments along which the render is still wrong halved
    (``trace.split_where_wrong``) and polished again, kept where nearer;
-6. ``finish``: crossings untangled, written nonzero (``trace.finished``).
+6. ``colors_solved``: each polished picture's colours solved against it (``solved_colors``);
+7. ``finish``: crossings untangled, written nonzero (``trace.finished``).
 
 ``trace_alone`` runs it without a renderer, for pictures none of which is polished: NumPy only,
 so this module imports no torch (a ``Refinement`` comes in from ``refine_batch``, which has it).
@@ -19,6 +20,7 @@ Frame: the pixel frame of each picture; pictures are ``(H, W, 3)`` float64 array
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
@@ -73,6 +75,8 @@ def clean_outlines(pictures: list[np.ndarray], run: Refinement | None, s: Plan =
     vecs, loss = polish(run, vecs, flags, todo) if todo else (vecs, {})
     if s.split_error > 0 and loss:
         vecs, loss = split_and_polish(run, pictures, vecs, flags, loss, s)
+    if loss:
+        vecs, loss = colors_solved(run, pictures, vecs, list(loss))
     tell(Stage("polished"))
     out = [finish(run, i, vecs[i], loss.get(i), info[i], chosen[i].name, judge=polish_these[i])
            for i in range(len(vecs))]
@@ -172,6 +176,37 @@ def split_and_polish(run: Refinement, pictures: list[np.ndarray], vecs: list[Vec
             if sc < loss[i]:
                 out[i], loss[i] = v, sc
     return out, loss
+
+
+def colors_solved(run: Refinement, pictures: list[np.ndarray], vecs: list[VectorImage], todo: list[int]
+                  ) -> tuple[list[VectorImage], dict[int, float]]:
+    """The polished pictures ``todo`` with their shapes' colours solved (``solved_colors``) and the loss of each."""
+    out = list(vecs)
+    for i in todo:
+        out[i] = solved_colors(vecs[i], pictures[i])
+    return out, dict(zip(todo, run.loss([out[i] for i in todo], todo)))
+
+
+def solved_colors(vec: VectorImage, picture: np.ndarray, ridge: float = 1e-3) -> VectorImage:
+    """``vec`` with the colours whose cairo render over white is nearest ``picture (H, W, 3)`` (least
+    squares, ``raster.composite.solve_colors``; ``ridge`` pulls a hidden shape to its own colour): each shape's
+    exact coverage (``shape_coverage``) at 1x, the pixels a viewer shows. The polish fits colours through the
+    renderer's soft edges, and a small icon's 1 px mid-blue outline came out navy (Tango's 22 px, issue 69)."""
+    import torch
+
+    from ..raster.composite import solve_colors
+    from ..trace.outline import shape_coverage
+
+    if not vec.shapes:
+        return vec
+    h, w = picture.shape[:2]
+    cov = torch.from_numpy(np.stack([shape_coverage(sh, w, h, w / vec.width) for sh in vec.shapes]))[None]
+    prior = torch.tensor([[sh.color for sh in vec.shapes]], dtype=torch.float64)
+    target = torch.from_numpy(np.ascontiguousarray(picture.transpose(2, 0, 1), dtype=np.float64))[None]
+    depth = torch.arange(len(vec.shapes), dtype=torch.float64)[None]  # listed back to front
+    colors = solve_colors(cov, depth, target, prior, ridge)[0].tolist()
+    shapes = [dataclasses.replace(sh, color=tuple(c)) for sh, c in zip(vec.shapes, colors)]
+    return dataclasses.replace(vec, shapes=shapes)
 
 
 def finish(run: Refinement | None, i: int, vec: VectorImage, loss: float | None, info: dict, start: str,

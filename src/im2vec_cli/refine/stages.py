@@ -117,7 +117,8 @@ class Refinement:
                                     self.s.tau_end, False, "polish", self.on_step, index=index)
 
     def polish_outline(self, vecs: list[VectorImage], flags: list[Corners], index: list[int]) -> list[VectorImage]:
-        """Clean outlines: points and colours polished for ``outline_steps``, smooth joins kept smooth."""
+        """Clean outlines: points and colours polished for ``outline_steps``, smooth joins kept smooth (the colours
+        are solved again after: ``clean.solved_colors``)."""
         return self.fine.fit_points(vecs, self.s.outline_steps, self.s.outline_tau, True, "outline", self.on_step,
                                     smooth=flags, index=index)[0]
 

@@ -43,16 +43,16 @@ def fitted(rings_by_shape: list[tuple[tuple, list[np.ndarray]]], width: float, h
 
 
 def traced(image: np.ndarray, tol: float, colors: int | None = None, max_paths: int | None = None,
-           kind: str = "", tone: tuple[np.ndarray, np.ndarray] | None = None, speck: int = 0, marks: float = 0.0
-           ) -> tuple[VectorImage, Corners, bool]:
+           kind: str = "", tone: tuple[np.ndarray, np.ndarray] | None = None, speck: int = 0, marks: float = 0.0,
+           palette: bool = False) -> tuple[VectorImage, Corners, bool]:
     """The picture ``(H, W, 3)`` in [0, 1] traced and fitted (``regions.trace``, ``fit.fit_rings``),
     and whether the result is exact: a hard-edged picture's regions along its pixel edges,
     every side one straight segment, every corner sharp (nothing to fit or polish). ``kind``:
     what ``read.read`` read it as (``regions.trace``); ``tone``: its ink and coverage where it is
     two-tone and ``read.read`` found them; ``speck``, ``marks``: a photo's smallest piece, and how much a
-    smaller mark stands out."""
+    smaller mark stands out; ``palette``: traced by its palette though it looks two-tone."""
     h, w, _ = image.shape
-    regions = trace(image, colors, max_paths, kind=kind, tone=tone, speck=speck, marks=marks)
+    regions = trace(image, colors, max_paths, kind=kind, tone=tone, speck=speck, marks=marks, palette=palette)
     if regions and all(r.exact for r in regions):
         return straight([(r.color, r.polygons) for r in regions], w, h) + (True,)
     return fitted([(r.color, r.polygons) for r in regions], w, h, tol) + (False,)

@@ -35,6 +35,8 @@ PHOTO_SIGMA = 0.3  # px: a photo's blur before it is cut into pieces (bench/wild
 AGREE_MARGIN = 0.03  # edge F1 by which a drawing's pieces must agree better with it than its palette's regions
 # (bench/wild.py's tuned drawings: 0.04-0.33 better where the pieces' trace was at or above both peers and the
 # palette's was not; a 100 px star 0.30 better where the palette's trace was already exact)
+TINT_PIXELS, TINT_MARGIN = 64 * 64, 0.7  # a two-tone-looking picture this small is read as colours where
+# its palette's pixel error is under this share of its ink's (``tints_agree_better``)
 AGREE_PIXELS = 1024 * 1024  # a larger drawing is judged on its window of this many pixels with the most edges (a
 # quantise and a cut: about 1 s a megapixel, 6 s on a 2100 px diagram; an area-averaged copy blurs thin lines)
 WINDOW_STEPS = 8  # the window is sought at this many steps across and down
@@ -180,6 +182,22 @@ def agrees_better(picture: np.ndarray, min_px: int, mark_by: float = 0.0, seed: 
     better = edges["photo_edges"] >= edges["logo_edges"] + AGREE_MARGIN and (
         ((photo - picture) ** 2).mean() <= ((logo - picture) ** 2).mean())
     return bool(better), {k: round(v, 3) for k, v in edges.items()}
+
+
+def tints_agree_better(picture: np.ndarray, bg: np.ndarray, ink: np.ndarray, alpha: np.ndarray) -> bool:
+    """Whether a picture ``(H, W, 3)`` of at most ``TINT_PIXELS`` px that looks two-tone (``ink (3,)`` at coverage
+    ``alpha (H, W)`` over ``bg``) is drawn nearer by its palette's regions (``palette.quantize``, as a logo is)
+    than by its ink where ``alpha`` is half or more (as it is traced), by ``TINT_MARGIN`` of the pixel error: its
+    in-between shades are flat tints of their own, not edges (a 22-32 px icon's light fill inside its 1 px
+    outline, a key's grey face; 2 of the 201 two-tone pictures of tests/assets' test sets, where 27 of 110 Tango
+    22-32 px icons outside bench/wild.py's)."""
+    from .palette import quantize
+
+    if picture.shape[0] * picture.shape[1] > TINT_PIXELS:
+        return False
+    palette, labels = quantize(picture, None)
+    two = bg + (alpha >= 0.5)[..., None] * (ink - bg)
+    return bool(((palette[labels] - picture) ** 2).mean() < TINT_MARGIN * ((two - picture) ** 2).mean())
 
 
 def busiest_window(picture: np.ndarray) -> np.ndarray:

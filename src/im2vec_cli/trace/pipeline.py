@@ -46,6 +46,7 @@ class Start:
     tone: tuple[np.ndarray, np.ndarray] | None = None  # a two-tone picture's ink and coverage (``read.Reading``)
     speck: int = 0  # px: a photo's smallest piece (``read.Reading``)
     marks: float = 0.0  # and how much a smaller mark stands out
+    palette: bool = False  # traced by its palette though it looks two-tone (``read.Reading``)
 
     def outline(self, tol: float) -> tuple[VectorImage, Corners, bool]:
         """Fitted within ``tol`` px, even-odd: the contours of a clean shape do not overlap, so
@@ -54,7 +55,7 @@ class Start:
         the outline is exact (``outline.traced``), not to be polished."""
         if self.paths is None:
             vec, flags, exact = traced(self.picture, tol, self.colors, self.max_paths, self.kind, self.tone,
-                                       self.speck, self.marks)
+                                       self.speck, self.marks, self.palette)
         else:
             (vec, flags), exact = redrawn(self.paths, tol, self.picture), False
         return with_rule(vec, "evenodd"), flags, exact
@@ -64,7 +65,8 @@ def image_starts(pictures: list[np.ndarray], s: Plan, readings: list[Reading]) -
     """Each picture's own start: its regions traced as its reading says (``s.colors``,
     ``s.max_paths``)."""
     return [Start("image", pic, colors=s.colors, max_paths=s.max_paths,
-                  kind=r.kind, tone=r.tone, speck=r.speck, marks=r.marks) for pic, r in zip(pictures, readings)]
+                  kind=r.kind, tone=r.tone, speck=r.speck, marks=r.marks, palette=r.palette)
+            for pic, r in zip(pictures, readings)]
 
 
 def model_start_wanted(pictures: list[np.ndarray], s: Plan, readings: list[Reading], polish: list[bool]) -> list[int]:
@@ -76,7 +78,7 @@ def model_start_wanted(pictures: list[np.ndarray], s: Plan, readings: list[Readi
     if not s.model_start:
         return []
     return [i for i, pic in enumerate(pictures)
-            if s.colors in (None, 1) and polish[i] and readings[i].kind != "pixel"
+            if s.colors in (None, 1) and polish[i] and readings[i].kind != "pixel" and not readings[i].palette
             and (readings[i].tone is not None or two_tone(pic, background_color(pic)) is not None)]
 
 

@@ -6,12 +6,13 @@
   paper, divided out), noise and JPEG ringing smoothed away, read as ink on white paper (black-looking ink black);
 - **line**: a two-tone drawing of thin (1-3 px) strokes, traced at half each stroke's own darkness (``half_max``), so
   strokes thinner than a pixel stay whole; a scan's and line art's pieces and holes under ``speckle``^2 px dropped;
-- **logo**: flat colours (glyphs, icons, logos, emoji), JPEG ringing smoothed first;
+- **logo**: flat colours (glyphs, icons, logos, emoji), JPEG ringing smoothed first; a small icon that looks two-tone
+  by its palette where its tints are fills of their own (``photo.tints_agree_better``);
 - **photo**: a continuous-tone picture, lightly smoothed (``PHOTO_SIGMA``) and cut into pieces of one fine colour
   step (``photo.pieces``), none smaller than ``speckle``^2 px but a render's marks (text, dots).
 
-Pixel art and photos are not polished through the renderer (the one exact, the other of too many segments);
-nor is any picture larger than the polish's size (``options.Plan.max_side``). Frame: ``(H, W, 3)`` floats in [0, 1].
+Pixel art and photos are not polished (exact; too many segments), nor a picture over ``options.Plan.max_side``.
+Frame: ``(H, W, 3)`` floats in [0, 1].
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ import numpy as np
 from ..options import PRESETS
 from .ndops import gaussian, mean3, norm3, rgb_keys, spread3
 from .palette import MAX_HARD_COLORS, hard_palette
-from .photo import MARK_GRAINY, MARK_RENDERED, PHOTO_SIGMA, agrees_better, looks_like_a_photo
+from .photo import MARK_GRAINY, MARK_RENDERED, PHOTO_SIGMA, agrees_better, looks_like_a_photo, tints_agree_better
 from .regions import background_color, two_tone
 
 KINDS = PRESETS[1:]  # the kinds of picture: options.PRESETS but "auto"
@@ -68,6 +69,7 @@ class Reading:
     tone: tuple[np.ndarray, np.ndarray] | None = None  # a two-tone picture's (ink (3,), coverage (H', W'))
     speck: int = 0  # px (``photo.pieces``)
     marks: float = 0.0  # lightness by which a photo's marks smaller than ``speck`` stand out (``photo.pieces``)
+    palette: bool = False  # traced by its palette though it looks two-tone (``photo.tints_agree_better``)
 
 
 def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = None, colors: int | None = None
@@ -95,7 +97,8 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
         picture = grey if tone is not None else picture
     if preset is None and tone is not None and background_spread(picture, tone[1]) > UNEVEN:
         tone = None  # shaded paper: a scan whose light falls along the ink's colour line, not a clean picture
-    if preset is None and tone is not None:
+    tinted = preset is None and tone is not None and tints_agree_better(picture, bg, *tone)  # a small icon's fills
+    if preset is None and tone is not None and not tinted:
         width = stroke_width(tone[1] >= 0.5)
         kind = "line" if width <= THIN else "logo"
         return Reading(kind, picture, figures={"stroke": round(width, 2)},
@@ -126,19 +129,21 @@ def read(picture: np.ndarray, preset: str | None = None, speckle: int | None = N
     if preset == "photo" or (preset is None and looks_like_a_photo(picture)):
         return _photo(picture, figures, piece, mark)
     judge = preset is None and colors is None and not hard  # (a large drawing on a window: ``busiest_window``)
-    return _logo_or_photo(picture, noise, figures, piece, mark, judge)
+    return _logo_or_photo(picture, noise, figures, piece, mark, judge, tinted)
 
 
-def _logo_or_photo(picture: np.ndarray, noise: float, figures: dict, piece: int, mark: float, judge: bool) -> Reading:
+def _logo_or_photo(picture: np.ndarray, noise: float, figures: dict, piece: int, mark: float, judge: bool,
+                   tinted: bool = False) -> Reading:
     """A drawing read as a logo or, ``judge``-d so, as a photo where its pieces draw it closer (``photo.agrees_better``,
-    on the picture cast through float32 as ``batch.read_pictures`` casts it: the trace finds the palette kept)."""
+    on the picture cast through float32 as ``batch.read_pictures`` casts it: the trace finds the palette kept).
+    ``tinted``: it looks two-tone, but its tints are fills of their own (``photo.tints_agree_better``)."""
     logo = smoothed(picture, noise) if noise > NOISE else picture
     if judge:
         better, agreement = agrees_better(logo.astype(np.float32).astype(np.float64), piece, mark)
         figures.update(agreement)
         if better:
             return _photo(picture, figures, piece, mark)
-    return Reading("logo", logo, figures=figures)
+    return Reading("logo", logo, figures=figures, palette=tinted)
 
 
 def _photo(picture: np.ndarray, figures: dict, piece: int, mark: float) -> Reading:  # ``Reading.speck``, ``marks``
@@ -146,10 +151,9 @@ def _photo(picture: np.ndarray, figures: dict, piece: int, mark: float) -> Readi
 
 
 def shaded_share(alpha: np.ndarray) -> float:
-    """The share of pixels of ``alpha (H, W)`` (a reading as ink on paper) that are neither ink
-    nor paper (0.15-0.85) in a steady 3x3 neighbourhood (spread under 0.1): areas of an
-    in-between shade. A scan's in-between pixels are its strokes' edges (real scans and pages:
-    at most 0.002); a shaded icon's grey body is such an area (Oxygen's: 0.07-0.09)."""
+    """The share of pixels of ``alpha (H, W)`` (a reading as ink on paper) neither ink nor paper (0.15-0.85) in a
+    steady 3x3 neighbourhood (spread under 0.1): areas of an in-between shade. A scan's in-between pixels are its
+    strokes' edges (real scans and pages: at most 0.002); a shaded icon's grey body is one (Oxygen's: 0.07-0.09)."""
     from .ndops import extreme3
 
     spread = extreme3(alpha[..., None], True)[..., 0] - extreme3(alpha[..., None], False)[..., 0]
@@ -195,8 +199,7 @@ def _native_pixel_art(picture: np.ndarray, labels: np.ndarray) -> bool:
 
 
 def edge_share(picture: np.ndarray) -> float:
-    """The share of the pixels of ``picture (H, W, 3)`` whose 8-bit colour differs from the pixel
-    above or to their left."""
+    """The share of the pixels of ``picture (H, W, 3)`` whose 8-bit colour differs from the one above or left."""
     keys = rgb_keys(np.round(picture * 255).astype(np.int64))
     edge = np.zeros(keys.shape, dtype=bool)
     edge[1:] |= keys[1:] != keys[:-1]
@@ -231,9 +234,7 @@ def pixel_block(picture: np.ndarray) -> int:
     if len(rows) == 0 and len(cols) == 0:
         return 1
     block = int(np.gcd.reduce(np.concatenate([rows, cols, [h, w]])))
-    if block < 2:
-        return 1
-    if len(np.unique(rgb_keys(q[::block, ::block].astype(np.int64)))) > MAX_HARD_COLORS:
+    if block < 2 or len(np.unique(rgb_keys(q[::block, ::block].astype(np.int64)))) > MAX_HARD_COLORS:
         return 1
     return block
 

@@ -44,9 +44,8 @@ GRID_KEPT = 1024  # px: contourpy's grid is kept for fields this small (a photo'
 
 @dataclass
 class Region:
-    """One flat-colour region: ``polygons`` are closed ``(N, 2)`` pixel-frame rings (first point not repeated),
-    outer boundaries clockwise on screen and holes counter-clockwise. ``exact``: the rings run along pixel
-    edges and are the outline itself (straight sides, nothing to fit)."""
+    """One flat-colour region: ``polygons`` are closed ``(N, 2)`` pixel-frame rings (first point not repeated), outer
+    boundaries clockwise, holes counter-clockwise. ``exact``: along pixel edges, the outline itself (nothing to fit)."""
 
     color: tuple[float, float, float]
     polygons: list[np.ndarray]
@@ -140,19 +139,19 @@ def two_tone(image: np.ndarray, bg: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 
 def trace(image: np.ndarray, colors: int | None = None, max_regions: int | None = None,
           seed: int = 0, kind: str = "", tone: tuple[np.ndarray, np.ndarray] | None = None,
-          speck: int = 0, marks: float = 0.0) -> list[Region]:
+          speck: int = 0, marks: float = 0.0, palette: bool = False) -> list[Region]:
     """The regions of ``image (H, W, 3)`` in [0, 1], back to front.
 
     Args:
-        colors: palette size for a multi-colour picture (``None``: the fewest colours that
-            reproduce the flat areas, at most 16). ``colors == 1`` treats any picture as
-            two-tone (the ink is its darkest extreme).
+        colors: palette size for a multi-colour picture (``None``: the fewest colours that reproduce the flat
+            areas, at most 16). ``colors == 1`` treats any picture as two-tone (the ink is its darkest extreme).
         max_regions: keep this many regions at most (the largest).
         kind: what ``read.read`` read the picture as. ``"pixel"``: its exact colours traced
             along its pixel edges, whatever their number (at most ``MAX_HARD_COLORS``) or
             mixes; ``"photo"``: its pieces of one fine colour step, none under ``speck`` px but marks standing
             out by ``marks`` (``photo.pieces``), or with ``colors`` posterised to that many (``palette.posterize``).
-        tone: ``two_tone(image, background_color(image))`` where it is known (``read.read``).
+        tone: ``two_tone(image, background_color(image))`` where it is known (``read.read``); ``palette``: none
+            is sought (the picture was read as colours though it looks two-tone: ``photo.tints_agree_better``).
     """
     image = np.asarray(image, dtype=np.float64)
     bg = background_color(image)
@@ -166,7 +165,8 @@ def trace(image: np.ndarray, colors: int | None = None, max_regions: int | None 
         return _with_background(bg, _stacked_regions(image, *hard, max_regions, white, exact=exact), image.shape,
                                 exact=exact)
     photo = kind == "photo" and colors is None  # read as a photo: its pieces, though its blur may look two-tone
-    tone = None if photo else (two_tone(image, bg) if tone is None else tone) if colors in (None, 1) else None
+    sought = colors in (None, 1) and not (photo or palette)
+    tone = None if not sought else two_tone(image, bg) if tone is None else tone
     if tone is None and colors == 1:
         ink, t = _ink_line(image, bg, 0.8)
         tone = ink, np.clip(t, 0, 1)
