@@ -12,6 +12,15 @@ torch.set_num_threads(min(2, os.cpu_count() or 1))
 DEJAVU = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf"
 
 
+@pytest.fixture(autouse=True)
+def _torch_threads_kept():
+    """Each test starts with the suite's torch threads: training in process sets its own (one), and a test after
+    it ran on one thread, where a batch and one image at a time round apart (test_batch's model parts: 27 vs 31)."""
+    threads = torch.get_num_threads()
+    yield
+    torch.set_num_threads(threads)
+
+
 @pytest.fixture(scope="session")
 def dejavu():
     from fontTools.ttLib import TTFont
