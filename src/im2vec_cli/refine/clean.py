@@ -191,7 +191,7 @@ def solved_colors(vec: VectorImage, picture: np.ndarray, ridge: float = 1e-3) ->
     """``vec`` with the colours whose cairo render over white is nearest ``picture (H, W, 3)`` (least
     squares, ``raster.composite.solve_colors``; ``ridge`` pulls a hidden shape to its own colour): each shape's
     exact coverage (``shape_coverage``) at 1x, the pixels a viewer shows. The polish fits colours through the
-    renderer's soft edges, and a small icon's 1 px mid-blue outline came out navy (Tango's 22 px, issue 69)."""
+    renderer's soft edges (but a small icon's: ``stages.HELD_COLORS_SIDE``), which are not those pixels."""
     import torch
 
     from ..raster.composite import solve_colors
