@@ -5,7 +5,7 @@ PIP ?= .venv/bin/pip
 TORCH_PIN ?= torch==2.13.0
 TORCH_INDEX ?= https://download.pytorch.org/whl/cpu
 
-.PHONY: install test test-slow fuzz lint bench-scale train-fonts train-mnist train-emoji train-icons bench bench-cli bench-safety bench-hardening bench-realworld bench-wild bench-morphs bench-sets bench-vectorize bench-outlines bench-solves bench-folder bench-speed bench-ratios bench-fill-bound docs results demo data-fonts data-mnist data-emoji data-icons clean
+.PHONY: install test test-slow fuzz lint bench-scale train-fonts train-mnist train-emoji train-icons bench bench-cli bench-safety bench-hardening bench-realworld bench-wild bench-morphs bench-parts bench-sets bench-vectorize bench-outlines bench-solves bench-folder bench-speed bench-ratios bench-fill-bound docs results demo data-fonts data-mnist data-emoji data-icons clean
 
 install: .venv/.installed
 
@@ -79,6 +79,9 @@ bench-wild: bench-sets
 # MNIST samples' pieces and holes: docs/MORPHS.md and docs/morphs.png. About 4 minutes on 2 cores.
 bench-morphs: bench-sets
 	$(PY) bench/morphs.py --markdown docs/MORPHS.md --sheet docs/morphs.png
+
+bench-parts: install
+	$(PY) bench/parts.py --markdown docs/results/parts.md --sheet docs/results/parts-{set}.png
 
 # What bench-outlines and bench-realworld compare against and build their sets from, none of it a runtime
 # dependency: potrace, vtracer, GNU FreeFont and Lato, Font Awesome Free 7.3.1 and OpenMoji 1.2.29 (npm).

@@ -45,6 +45,7 @@ READ_BYTES_PER_PIXEL = 16  # a picture decoded (8-bit, twice while converting) a
 WORK_BYTES_PER_PIXEL = 256  # tracing and polishing, per pixel of the copy worked on (bench/hardening.py:
 # 1.3 GB peak for a 2048^2 gradient of 16 colours)
 MAX_SPECKLE = 1000  # `vectorize --filter-speckle`: px a side at most
+MAX_GROW = 256  # `vectorize --grow`: paths at most (each one more shape in every step of the polish)
 MAX_WORK_PIXELS = 2048 * 2048  # the largest copy worked on, whatever the budget: 2048 px resolve any outline
 
 
@@ -93,6 +94,8 @@ class Plan:
     bounds_weight: float = 10.0
     min_segment_px: float = 0.5  # segments shorter than this are pushed apart (collapsed-segment guard)
     collapse_weight: float = 1e-3
+    grow: int = 32  # (<= MAX_GROW) --parts model: at most this many paths of the picture's own pieces added where the fitted
+    # paths miss them (``refine.grow``; 0: none)
     prune_tol: float = 0.01  # drop a path whose removal raises the loss by less than this fraction
     simplify_tol: float = 0.25  # after fitting, merge segments while the outline moves less than this (input px)
     polish_steps: int = 40  # points-only steps after simplifying
@@ -163,6 +166,9 @@ class VectorizeOptions:
     segments: cubic segments per path (default: the model's), or ``"auto"`` (the model's
         segment predictor chooses per path at ``quality``).
     max_paths: keep at most this many paths (the largest).
+    grow: with ``parts="model"`` and ``refine``, at most this many paths added on top of the model's where its
+        fitted paths miss a part of the picture (an eye, a dot, a hole), each one piece of the picture's own regions
+        (``refine.grow``; default 32; 0: the model's paths alone).
     simplify_px: merge segments while the outline moves less than this many input pixels
         (default 0.25 with ``refine``, else 0).
     compile: run the renderer's kernels through ``torch.compile`` while refining. Each new
@@ -185,6 +191,7 @@ class VectorizeOptions:
     segments: int | str | None = None
     quality: float | None = None
     max_paths: int | None = None
+    grow: int | None = None  # paths (None: Plan.grow)
     simplify_px: float | None = None
     compile: bool = False
     max_memory: int | None = None  # bytes (None: MEMORY_DEFAULT)
@@ -206,6 +213,8 @@ class VectorizeOptions:
             raise ConfigError(f"colors must be an integer in [1, 64], got {self.colors!r}")
         if self.max_paths is not None and not (_integer(self.max_paths) and self.max_paths >= 1):
             raise ConfigError(f"max_paths must be an integer >= 1, got {self.max_paths!r}")
+        if self.grow is not None and not (_integer(self.grow) and 0 <= self.grow <= MAX_GROW):
+            raise ConfigError(f"grow must be an integer number of paths in [0, {MAX_GROW}], got {self.grow!r}")
         if self.segments is not None and self.segments != "auto" and not (_integer(self.segments)
                                                                           and self.segments >= 1):
             raise ConfigError(f"segments must be an integer >= 1 or 'auto', got {self.segments!r}")
@@ -235,6 +244,8 @@ class VectorizeOptions:
             fields["tolerance"] = float(self.tolerance)
         if self.simplify_px is not None or not self.refine:
             fields["simplify_tol"] = float(self.simplify_px or 0.0)
+        if self.grow is not None:
+            fields["grow"] = int(self.grow)
         return Plan(refine=self.refine, parts=self.parts, colors=self.colors, max_paths=self.max_paths,
                     segments=self.segments, quality=self.quality, compile=self.compile,
                     preset=None if self.preset == "auto" else self.preset, speckle=self.speckle,
@@ -255,6 +266,7 @@ IDLE = {
     "effort": (lambda o: o.refine, "it sets how hard refinement works, and without refinement there is none"),
     "compile": (lambda o: o.refine, "it compiles the refinement, and without refinement there is none"),
     "quality": (lambda o: o.segments == "auto", "it sets segments='auto''s choice"),
+    "grow": (lambda o: o.refine and o.parts == "model", "it adds paths to the model's fitted ones (--parts model)"),
 }
 
 

@@ -8,7 +8,7 @@ import signal
 import click
 
 from ..errors import Im2VecError
-from ..options import EFFORTS, MAX_SPECKLE, PARTS, PRESETS, VectorizeOptions
+from ..options import EFFORTS, MAX_GROW, MAX_SPECKLE, PARTS, PRESETS, VectorizeOptions
 from .app import EXIT_HELP, cli, starting_up, warn
 from .batch import (
     check_writable_folder,
@@ -39,7 +39,12 @@ PLAN_SAMPLE = 64  # --jobs auto: the pictures whose sizes are read to weigh the 
               help="clean (each colour one path of outer contours and holes, no overlaps; with refinement from "
                    "the model's paths or the image's own regions, whichever fits better; with --no-refine the model's "
                    "guess with its seams mended) or model (the model's own overlapping paths, the same for every "
-                   "image of its class: for animation and the latent space).")
+                   "image of its class: for animation and the latent space; refined, with paths grown on top where "
+                   "they miss a part: --grow).")
+@click.option("--grow", type=click.IntRange(0, MAX_GROW), default=None, metavar="N",
+              help="With --parts model: add at most N paths on top of the model's where its fitted paths miss a part "
+                   "of the picture (an eye, a dot, a hole), each one piece of the picture's own regions; 0: the "
+                   "model's paths alone. [32]")
 @click.option("--tolerance", type=Finite(0, min_open=True), default=None,
               help="With --parts clean: how far (input px) a curve may stray from the traced outline before a "
                    "segment is added; smaller is more exact, larger more compact. [0.5]")
@@ -89,7 +94,7 @@ PLAN_SAMPLE = 64  # --jobs auto: the pictures whose sizes are read to weigh the 
                    "before decoding, and a large one is vectorized at a smaller copy (at most 2048x2048). [2G]")
 @model_options
 @click.pass_context
-def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, tolerance, colors, refine, effort, preset,
+def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, grow, tolerance, colors, refine, effort, preset,
               speckle, verbose, simplify_px, jobs, compile_, engine, address, max_memory, model_name, device, seed):
     """Vectorize images (PNG/JPG, any size) into SVGs of closed cubic paths.
 
@@ -100,7 +105,7 @@ def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, toleranc
     """
     k = parse_segments(segments)
     options = VectorizeOptions(refine=refine, effort=effort, segments=k, quality=quality, max_paths=max_paths,
-                               simplify_px=simplify_px, parts=parts, tolerance=tolerance, colors=colors,
+                               grow=grow, simplify_px=simplify_px, parts=parts, tolerance=tolerance, colors=colors,
                                compile=compile_, max_memory=max_memory, preset=preset, speckle=speckle)
     for note in _ignored_options(ctx, options):
         warn(note)

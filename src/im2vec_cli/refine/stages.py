@@ -129,6 +129,28 @@ class Refinement:
         return self.fine.fit_points(vecs, self.s.outline_steps, self.s.outline_tau, learn_colors, "outline",
                                     self.on_step, smooth=flags, index=index)[0]
 
+    def targets(self, index: list[int]) -> list:
+        """The pictures ``index`` at the fit size, as the loss sees them: ``(h, w, 3)`` float64 arrays."""
+        return [self.fitter.target[0][i].detach().permute(1, 2, 0).double().cpu().numpy() for i in index]
+
+    def grow(self, vecs: list[VectorImage], index: list[int]) -> tuple[list[VectorImage], list[int]]:
+        """Paths of the pictures' own pieces added where the fitted paths miss them (``grow.grown``), and how many."""
+        from ..trace import read_pictures
+        from .grow import grown
+
+        pics = self.targets(index)
+        got = [grown(v, p, r, self.s) for v, p, r in zip(vecs, pics, read_pictures(pics, self.s))]
+        return [v for v, _ in got], [n for _, n in got]
+
+    def solved(self, vecs: list[VectorImage], loss: list[float], index: list[int]) -> tuple[list[VectorImage], list[float]]:
+        """Each image's colours solved against its picture (``clean.solved_colors``), kept where the loss is lower."""
+        from .clean import solved_colors
+
+        got = [solved_colors(v, p) if v.shapes else v for v, p in zip(vecs, self.targets(index))]
+        now = self.loss(got, index)
+        pairs = [(g, b) if b < a else (v, a) for v, g, a, b in zip(vecs, got, loss, now)]
+        return [v for v, _ in pairs], [e for _, e in pairs]
+
     def loss(self, vecs: list[VectorImage], index: list[int]) -> list[float]:
         """The judge: pyramid L2 at ``tau_end`` with ``polish_samples`` lines per cubic."""
         return self.fine.vector_loss(vecs, self.s.tau_end, index)
@@ -149,14 +171,17 @@ def model_paths(run: Refinement, index: list[int], plan: Plan, outline: bool = F
     if outline:
         return list(zip(vecs, info))
     vecs = run.prune(vecs, index)
+    vecs, grew = run.grow(vecs, index) if plan.grow else (vecs, [0] * len(vecs))
     fitted = [v.num_segments for v in vecs]
     vecs, polish_steps = run.simplify_and_polish(vecs, index)
     end = run.loss(vecs, index)
+    if not run.model.palette.numel():  # learned colours: solved against the picture, kept where nearer
+        vecs, end = run.solved(vecs, end, index)
     out = []
     for j, v in enumerate(vecs):
         e = end[j]
         if e > start[j]:  # refinement never makes the result worse than the model's guess
             v, e = simplify(guess[j], run.s.simplify_tol), start[j]
-        out.append((v, {**info[j], "loss_end": e, "polish_steps": polish_steps[j], "segments_fitted": fitted[j],
+        out.append((v, {**info[j], "loss_end": e, "polish_steps": polish_steps[j], "segments_fitted": fitted[j], "grown": grew[j],
                         "segments": v.num_segments}))
     return out
