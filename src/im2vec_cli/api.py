@@ -33,7 +33,7 @@ import numpy as np
 from .config import DEFAULT_MODEL
 from .events import FeatureData, FeatureTest, Skipped
 from .files import as_image
-from .options import PARTS, VectorizeOptions
+from .options import GROW, PARTS, VectorizeOptions
 from .vector import VectorImage
 from .vectorizing import ModelRef, check_segments, load_model, vectorize, vectorize_each
 from .vectorizing import model_of as _model
@@ -62,14 +62,18 @@ def __getattr__(name: str):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-def project(images, model=DEFAULT_MODEL, *, fit: bool = True, segments: int | None = None):
+def project(images, model=DEFAULT_MODEL, *, fit: bool = True, segments: int | None = None, grow: int = 0):
     """A picture or a list as the model draws them (``project.Projection``: latents and paths),
-    fitted to each (``project.project``) or the encoder's guess (``fit=False``)."""
+    fitted to each (``project.project``) or the encoder's guess (``fit=False``); ``grow``: with
+    ``fit``, at most this many pieces of each picture grown where its fitted paths miss a part
+    (``project.grown_parts``: ``interpolate`` morphs them)."""
     from . import project as projection
     from .raster import compiling
 
+    model, pictures = _model(model), _pictures(images)
     with compiling(False):  # a compile costs tens of seconds, a fit about one
-        return projection.project(_model(model), _pictures(images), _fitting(fit), segments)
+        proj = projection.project(model, pictures, _fitting(fit), segments)
+    return projection.grown_parts(model, proj, pictures, grow) if fit and grow else proj
 
 
 def encode(images, model=DEFAULT_MODEL, *, fit: bool = True) -> np.ndarray:
@@ -148,19 +152,23 @@ def sample(n: int, model=DEFAULT_MODEL, *, seed: int = 0, temperature: float | N
 
 
 def interpolate(a, b, model=DEFAULT_MODEL, *, steps: int = 4, segments: int | None = None,
-                keep_all: bool = False, parts: str | None = None, fit: bool = True) -> list[VectorImage]:
+                keep_all: bool = False, parts: str | None = None, fit: bool = True,
+                grow: int = GROW) -> list[VectorImage]:
     """``steps + 2`` frames from ``a`` to ``b``, ends included, on the model's square canvas.
 
     Each end is a picture (``project``-ed: fitted unless ``fit=False``), a latent ``(D,)``
     (decoded) or a projection of one (``project(...).take(i)``). The frames interpolate the
     two ends' paths (``Projection.between``), and are drawn as ``decode`` says (``keep_all``:
-    the model's own paths, every frame with the same ones)."""
+    the model's own paths, every frame with the same ones). ``grow``: a picture end fitted (not with
+    ``keep_all``) gets at most this many pieces grown where its paths miss a part (``project.grown_parts``),
+    matched across the ends and morphed with the paths (``morph.frames``); 0: the model's paths alone."""
     from . import project as projection
     from .raster import compiling
 
     model = _model(model)
+    grow = 0 if keep_all or not fit else grow
     with compiling(False):
-        pa, pb = (projection.endpoint(model, x, _fitting(fit), segments) for x in (a, b))
+        pa, pb = (projection.endpoint(model, x, _fitting(fit), segments, grow) for x in (a, b))
     return pa.between(pb, steps).vectors(model.config.image_size, clean=_parts(parts, keep_all), keep_all=keep_all)
 
 

@@ -46,6 +46,7 @@ WORK_BYTES_PER_PIXEL = 256  # tracing and polishing, per pixel of the copy worke
 # 1.3 GB peak for a 2048^2 gradient of 16 colours)
 MAX_SPECKLE = 1000  # `vectorize --filter-speckle`: px a side at most
 MAX_GROW = 256  # `vectorize --grow`: paths at most (each one more shape in every step of the polish)
+GROW = 32  # paths grown at most by default (``refine.grow``): a face's parts and a flag's stars, not a photo's pieces
 MAX_WORK_PIXELS = 2048 * 2048  # the largest copy worked on, whatever the budget: 2048 px resolve any outline
 
 
@@ -94,8 +95,8 @@ class Plan:
     bounds_weight: float = 10.0
     min_segment_px: float = 0.5  # segments shorter than this are pushed apart (collapsed-segment guard)
     collapse_weight: float = 1e-3
-    grow: int = 32  # (<= MAX_GROW) --parts model: at most this many paths of the picture's own pieces added where the fitted
-    # paths miss them (``refine.grow``; 0: none)
+    grow: int = GROW  # (<= MAX_GROW) --parts model: at most this many paths of the picture's own pieces added
+    # where the fitted paths miss them (``refine.grow``; 0: none)
     prune_tol: float = 0.01  # drop a path whose removal raises the loss by less than this fraction
     simplify_tol: float = 0.25  # after fitting, merge segments while the outline moves less than this (input px)
     polish_steps: int = 40  # points-only steps after simplifying

@@ -24,6 +24,7 @@ other: frames are the linear interpolation of their points, colours and depths.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -37,7 +38,7 @@ from .model.vae import Decoded, Im2Vec
 from .optim import Adam
 from .raster import gaussian_pyramid, pyramid_l2, render_pyramid
 from .trace import cleaned
-from .vector import VectorImage, resolve_overlaps
+from .vector import VectorImage, VectorShape, resolve_overlaps
 
 
 @dataclass(frozen=True)
@@ -69,10 +70,13 @@ LATENT = ProjectSettings(code_steps=0, point_steps=0)  # what a latent can hold 
 @dataclass
 class Projection:
     """Pictures (or latents) as the model draws them: ``z (N, D)`` and its paths ``decoded``
-    (points ``(N, P, 3k, 2)``, colours ``(N, G, 3)``, depth ``(N, G)``), on the model's square."""
+    (points ``(N, P, 3k, 2)``, colours ``(N, G, 3)``, depth ``(N, G)``), on the model's square;
+    ``parts``: per item the pieces grown on top where its fitted paths miss a part (``grown_parts``;
+    ``VectorShape`` s in the square's normalised frame), or ``None``."""
 
     z: torch.Tensor
     decoded: Decoded
+    parts: list[list[VectorShape]] | None = None
 
     def __len__(self) -> int:
         return len(self.z)
@@ -81,11 +85,12 @@ class Projection:
         """Item ``i`` as a projection of one."""
         d = self.decoded
         return Projection(self.z[i : i + 1], Decoded(d.points[i : i + 1], d.colors[i : i + 1], d.depth[i : i + 1],
-                                                     d.shape_index, d.fill_rule))
+                                                     d.shape_index, d.fill_rule), self.parts and self.parts[i : i + 1])
 
     def between(self, other: Projection, steps: int) -> Projection:
         """``steps + 2`` frames from this projection of one to ``other`` (one), ends included:
-        points, colours, depths and ``z`` linearly interpolated."""
+        points, colours, depths and ``z`` linearly interpolated; grown parts matched across the
+        ends and interpolated (``morph.frames``)."""
         if len(self) != 1 or len(other) != 1:
             raise ValueError("between takes two projections of one picture each")
         a, b = self.decoded, other.decoded
@@ -99,7 +104,12 @@ class Projection:
 
         dec = Decoded(lerp(a.points, b.points), lerp(a.colors, b.colors), lerp(a.depth, b.depth), a.shape_index,
                       a.fill_rule)
-        return Projection(lerp(self.z, other.z), dec)
+        parts = None
+        if self.parts or other.parts:
+            from .morph import frames
+
+            parts = frames((self.parts or [[]])[0], (other.parts or [[]])[0], t.tolist())
+        return Projection(lerp(self.z, other.z), dec, parts)
 
     def vectors(self, size: int, *, clean: bool = True, keep_all: bool = False) -> list[VectorImage]:
         """Each item on a ``size`` px square canvas: clean outlines (``trace.cleaned``) or the
@@ -107,6 +117,11 @@ class Projection:
         if clean and keep_all:
             raise ValueError("clean outlines do not keep the model's paths: keep_all needs clean=False")
         out = [to_vector(self.decoded, i, Placement(size, size), keep_all=keep_all) for i in range(len(self))]
+        if self.parts:
+            out = [dataclasses.replace(v, shapes=list(v.shapes) + [dataclasses.replace(p, contours=[c * size for c in
+                                                                                                  p.contours])
+                                                                   for p in parts])
+                   for v, parts in zip(out, self.parts)]
         return [cleaned(v) for v in out] if clean else out
 
     def in_pictures(self, model: Im2Vec, images: list[torch.Tensor]) -> list[VectorImage]:
@@ -116,6 +131,23 @@ class Projection:
         return [resolve_overlaps(to_vector(self.decoded, i, p), im) for i, (p, im) in enumerate(zip(places, images))]
 
 
+def grown_parts(model: Im2Vec, proj: Projection, images: list[torch.Tensor], grow: int) -> Projection:
+    """``proj`` of ``images (3, H_i, W_i)`` with at most ``grow`` pieces of each picture's own regions
+    grown on its fitted paths where they miss a part (``refine.grow.grown``, at the model's size)."""
+    from .options import Plan
+    from .refine.grow import grown
+    from .trace import read_pictures
+
+    size, plan = model.config.image_size, Plan(grow=grow)
+    pics = [model_input(model, im)[0].detach().permute(1, 2, 0).double().cpu().numpy() for im in images]
+    parts = []
+    for i, (pic, reading) in enumerate(zip(pics, read_pictures(pics, plan))):
+        vec, n = grown(to_vector(proj.decoded, i, Placement(size, size)), pic, reading, plan)
+        parts.append([dataclasses.replace(p, contours=[c / size for c in p.contours])
+                      for p in vec.shapes[len(vec.shapes) - n :]])
+    return dataclasses.replace(proj, parts=parts)
+
+
 def from_latents(model: Im2Vec, z: torch.Tensor, segments: int | None = None) -> Projection:
     """Latents ``(N, D)`` as a ``Projection`` (decoded with ``segments`` per path)."""
     dev = next(model.parameters()).device
@@ -123,10 +155,11 @@ def from_latents(model: Im2Vec, z: torch.Tensor, segments: int | None = None) ->
         return Projection(z.to(dev).float(), model.decode(z.to(dev).float(), segments))
 
 
-def endpoint(model: Im2Vec, x, settings: ProjectSettings = ProjectSettings(), segments: int | None = None
-             ) -> Projection:
+def endpoint(model: Im2Vec, x, settings: ProjectSettings = ProjectSettings(), segments: int | None = None,
+             grow: int = 0) -> Projection:
     """An end of a morph as a projection of one: ``x`` a projection of one (as it is), a latent
-    ``(D,)`` (array-like: decoded) or a picture (anything ``files.as_image`` takes: projected)."""
+    ``(D,)`` (array-like: decoded) or a picture (anything ``files.as_image`` takes: projected, with at
+    most ``grow`` parts grown, ``grown_parts``)."""
     if isinstance(x, Projection):
         if len(x) != 1:
             raise ValueError(f"an endpoint is a projection of one picture, got {len(x)}")
@@ -136,7 +169,9 @@ def endpoint(model: Im2Vec, x, settings: ProjectSettings = ProjectSettings(), se
         if len(z) != model.config.latent or not torch.isfinite(z).all():
             raise ValueError(f"a latent endpoint must be ({model.config.latent},) and finite, got {tuple(z.shape)}")
         return from_latents(model, z[None], segments)
-    return project(model, [as_image(x)], settings, segments)
+    image = as_image(x)
+    proj = project(model, [image], settings, segments)
+    return grown_parts(model, proj, [image], grow) if grow else proj
 
 
 def project(model: Im2Vec, images: list[torch.Tensor], settings: ProjectSettings = ProjectSettings(),

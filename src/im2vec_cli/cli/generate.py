@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from ..errors import Im2VecError
-from ..options import MAX_TEMPERATURE, PARTS, PRIORS
+from ..options import GROW, MAX_GROW, MAX_TEMPERATURE, PARTS, PRIORS
 from .app import EXIT_HELP, cli
 from .batch import refuse_overwrite
 from .options import Finite, load_model, model_options, nonempty, parse_segments, set_threads_for
@@ -107,15 +107,15 @@ def latent_from(model, item: str):
     return z
 
 
-def endpoints(model, items: list[str], fit: bool, segments):
+def endpoints(model, items: list[str], fit: bool, segments, grow: int = 0):
     """Each of ``items`` (images, or latents from `encode`) as a projection of one; the images
-    are fitted together, in one batch."""
+    are fitted together, in one batch (with at most ``grow`` parts grown on each: ``api.project``)."""
     from .. import api
 
     latents = [latent_from(model, item) for item in items]
     pictures = [load_input_image(item) for item, z in zip(items, latents) if z is None]
     fitted = iter(range(len(pictures)))
-    proj = api.project(pictures, model, fit=fit, segments=segments) if pictures else None
+    proj = api.project(pictures, model, fit=fit, segments=segments, grow=grow) if pictures else None
     return [proj.take(next(fitted)) if z is None else z for z in latents]
 
 
@@ -135,8 +135,12 @@ MORPH_FRAMES = 24  # frames of morph.svg (at least): each shown for 1/8 s
 @click.option("--fit/--no-fit", default=True, show_default=True,
               help="Fit the model's paths to each image through the renderer (about 1 s), or keep the encoder's "
                    "guess (faster, coarser).")
+@click.option("--grow", type=click.IntRange(0, MAX_GROW), default=GROW, show_default=True, metavar="N",
+              help="With --fit: at most N pieces of each image grown where the model's fitted paths miss a part (an "
+                   "eye, a mouth, a dot), matched across the two ends by position and colour and morphed with the "
+                   "paths; 0: the model's paths alone.")
 @model_options
-def interpolate(a, b, steps, output, segments, animate, parts, fit, model_name, device, seed):
+def interpolate(a, b, steps, output, segments, animate, parts, fit, grow, model_name, device, seed):
     """Morph from A to B (images, or latents from `encode`): the model's paths of each, fitted
     to the image, interpolated.
 
@@ -155,7 +159,7 @@ def interpolate(a, b, steps, output, segments, animate, parts, fit, model_name, 
         raise click.BadParameter("auto is for vectorize: every frame of a morph has one count", param_hint="--segments")
     set_threads_for(steps + 2)
     model = load_model(model_name, device, seed)
-    za, zb = endpoints(model, [a, b], fit, k)
+    za, zb = endpoints(model, [a, b], fit, k, grow)
     write_set(output, "frame", api.interpolate(za, zb, model, steps=steps, segments=k, parts=parts), steps + 2)
     if animate:
         many = api.interpolate(za, zb, model, steps=max(steps, MORPH_FRAMES - 2), segments=k, parts=parts)

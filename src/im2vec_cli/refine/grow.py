@@ -64,6 +64,11 @@ def open_holes(piece: VectorShape, picture: np.ndarray, background: np.ndarray) 
     return out
 
 
+def _over(render: np.ndarray, piece: VectorShape, coverage: np.ndarray) -> np.ndarray:
+    """``render (H, W, 3)`` with ``piece`` of ``coverage (H, W)`` drawn over it in its colour."""
+    return render + coverage[..., None] * (np.asarray(piece.color) - render)
+
+
 def grown(vec: VectorImage, picture: np.ndarray, reading: Reading, s: Plan) -> tuple[VectorImage, int]:
     """``vec`` (any frame) with at most ``s.grow`` pieces of the picture's own trace added on top where they pay
     (``GROW_GAIN``) judged on ``picture`` (its size: the work's), and no more than ``s.max_paths`` shapes in all; and how many were added. ``reading``: what
@@ -79,14 +84,13 @@ def grown(vec: VectorImage, picture: np.ndarray, reading: Reading, s: Plan) -> t
              for q in [p, *open_holes(p, picture, bg)]]
     added: list[VectorShape] = []
     while cands and len(added) < most:
-        err = ((render - picture) ** 2).sum(-1)
-        gains = [float((err - ((render + cov[..., None] * (np.asarray(p.color) - render) - picture) ** 2).sum(-1)).sum())
-                 for p, cov in cands]
+        err = ((render - picture) ** 2).sum()
+        gains = [err - float(((_over(render, p, cov) - picture) ** 2).sum()) for p, cov in cands]
         best = int(np.argmax(gains))
         if gains[best] < GROW_GAIN:
             break
         p, cov = cands.pop(best)
-        render = render + cov[..., None] * (np.asarray(p.color) - render)
+        render = _over(render, p, cov)
         added.append(p)
     if not added:
         return vec, 0
