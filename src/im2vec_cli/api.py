@@ -161,7 +161,7 @@ def interpolate(a, b, model=DEFAULT_MODEL, *, steps: int = 4, segments: int | No
     two ends' paths (``Projection.between``), and are drawn as ``decode`` says (``keep_all``:
     the model's own paths, every frame with the same ones). ``grow``: a picture end fitted (not with
     ``keep_all``) gets at most this many pieces grown where its paths miss a part (``project.grown_parts``),
-    matched across the ends and morphed with the paths (``morph.frames``); 0: the model's paths alone."""
+    matched across the ends and morphed with the paths (``vector.morph.frames``); 0: the model's paths alone."""
     from . import project as projection
     from .raster import compiling
 

@@ -90,7 +90,7 @@ class Projection:
     def between(self, other: Projection, steps: int) -> Projection:
         """``steps + 2`` frames from this projection of one to ``other`` (one), ends included:
         points, colours, depths and ``z`` linearly interpolated; grown parts matched across the
-        ends and interpolated (``morph.frames``)."""
+        ends and interpolated (``vector.morph.frames``)."""
         if len(self) != 1 or len(other) != 1:
             raise ValueError("between takes two projections of one picture each")
         a, b = self.decoded, other.decoded
@@ -106,7 +106,7 @@ class Projection:
                       a.fill_rule)
         parts = None
         if self.parts or other.parts:
-            from .morph import frames
+            from .vector.morph import frames
 
             parts = frames((self.parts or [[]])[0], (other.parts or [[]])[0], t.tolist())
         return Projection(lerp(self.z, other.z), dec, parts)

@@ -1,4 +1,4 @@
-"""morph.py: grown pieces matched across a morph's two ends and interpolated."""
+"""vector/morph.py: grown pieces matched across a morph's two ends and interpolated."""
 
 from __future__ import annotations
 
@@ -7,11 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from im2vec_cli.morph import frames, match, paired
 from im2vec_cli.vector import VectorImage, VectorShape, rasterize_svg
+from im2vec_cli.vector.morph import frames, match, paired
 from tests.refine.test_grow import circle
 
-ASSETS = Path(__file__).resolve().parent / "assets"
+ASSETS = Path(__file__).resolve().parents[1] / "assets"
 
 
 def _render(shapes: list[VectorShape], size: int = 64) -> np.ndarray:

@@ -16,9 +16,9 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from .raster.bezier import subdivide_to
-from .vector import VectorShape
-from .vector.overlaps import reverse_contour
+from ..raster.bezier import subdivide_to
+from .image import VectorShape
+from .overlaps import reverse_contour
 
 MATCH_COST = 0.35  # pieces this far apart (normalised distance of centres + RGB distance / sqrt 3 + a tenth of
 # |log area ratio|) are not the same part
