@@ -80,8 +80,9 @@ bench-wild: bench-sets
 bench-morphs: bench-sets
 	$(PY) bench/morphs.py --markdown docs/MORPHS.md --sheet docs/morphs.png
 
-bench-parts: install
-	$(PY) bench/parts.py --markdown docs/results/parts.md --sheet docs/results/parts-{set}.png
+bench-parts: bench-sets
+	$(PY) bench/parts.py --sets emoji,icons,openmoji,fontawesome --markdown docs/results/parts.md \
+	  --sheet docs/results/parts-{set}.png
 
 # What bench-outlines and bench-realworld compare against and build their sets from, none of it a runtime
 # dependency: potrace, vtracer, GNU FreeFont and Lato, Font Awesome Free 7.3.1 and OpenMoji 1.2.29 (npm).

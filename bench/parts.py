@@ -15,6 +15,9 @@ the picture alone (no model, no trace of ours in the judge):
   (4-connected, not touching the border) of at least ``SPECK`` px are counted, and a picture
   counts when its render has as many of each.
 
+Held out from any tuning of ``refine.grow``'s constants: ``--sets openmoji,fontawesome`` (bench/outlines.py's
+OpenMoji faces and Font Awesome icons, no model trained on either), judged as emoji and icons.
+
     python bench/parts.py [--sets emoji,icons] [--tools model-guess,model-fitted,clean] [--limit N]
                           [--json out.json] [--markdown out.md] [--sheet out.png]
 """
@@ -119,12 +122,29 @@ def judge(name: str, rgb: np.ndarray, out: np.ndarray) -> dict:
     return row
 
 
+HELD_OUT = {"openmoji": "emoji", "fontawesome": "icons"}  # set -> the model and the judge it takes
+
+
+def pictures_of(name: str, limit: int | None) -> tuple[list[str], list[np.ndarray]]:
+    """A set's names and pictures ``(64, 64, 3)``: the test split of tests/assets (``emoji``, ``icons``, ...), or
+    a held-out set of bench/outlines.py (``openmoji``: 120 OpenMoji faces; ``fontawesome``: 120 Font Awesome
+    icons; ``make bench-sets`` fetches them), rendered at 64 px."""
+    if name in HELD_OUT:
+        sys.path.insert(0, str(ROOT / "bench"))
+        import outlines
+
+        rows = getattr(outlines, "emoji" if name == "openmoji" else "icons")(ROOT / "bench" / ".sets", None)[:limit]
+        return [r["name"] for r in rows], [rasterize_svg(r["svg"], 64, 64) for r in rows]
+    files = sorted((ROOT / "tests" / "assets" / f"{name}_test").glob("*.png"))[:limit]
+    return [f.name for f in files], [load_picture(f) for f in files]
+
+
 def run(name: str, tools: list[str], limit: int | None) -> dict:
     from im2vec_cli.vectorizing import load_model, vectorize_each
 
-    files = sorted((ROOT / "tests" / "assets" / f"{name}_test").glob("*.png"))[:limit]
-    pictures = [load_picture(f) for f in files]
-    model = load_model(name)
+    files, pictures = pictures_of(name, limit)
+    kind = HELD_OUT.get(name, name)
+    model = load_model(kind)
     res = {}
     for tool in tools:
         t = time.perf_counter()
@@ -135,10 +155,10 @@ def run(name: str, tools: list[str], limit: int | None) -> dict:
             h, w = rgb.shape[:2]
             svg = to_svg(v) if not isinstance(v, Exception) else None
             out = rasterize_svg(svg, w, h) if svg else np.ones_like(rgb)
-            rows.append({"file": f.name, "svg": svg, **judge(name, rgb, out)})
+            rows.append({"file": f, "svg": svg, **judge(kind, rgb, out)})
         res[tool] = {"rows": rows, "s": sec, "paths": float(np.mean([0 if isinstance(v, Exception) else len(v.shapes)
                                                                       for v in vecs]))}
-        print(f"{name:6s} {tool:13s} {summary(name, rows)}  {sec:.0f} s", flush=True)
+        print(f"{name:6s} {tool:13s} {summary(kind, rows)}  {sec:.0f} s", flush=True)
     return res
 
 
@@ -158,7 +178,7 @@ def markdown(out: dict, command: str) -> str:
              "| set | tool | kept | paths per picture | MSE at 1x | s for the set |", "|---|---|---|---|---|---|"]
     for name, res in out.items():
         for tool, r in res.items():
-            lines.append(f"| {name} | {TOOLS[tool][1]} | {summary(name, r['rows']).split('  MSE')[0]} | "
+            lines.append(f"| {name} | {TOOLS[tool][1]} | {summary(HELD_OUT.get(name, name), r['rows']).split('  MSE')[0]} | "
                          f"{r['paths']:.1f} | {np.mean([x['mse'] for x in r['rows']]):.5f} | {r['s']:.0f} |")
     return "\n".join(lines) + "\n"
 
@@ -166,7 +186,7 @@ def markdown(out: dict, command: str) -> str:
 def sheet(name: str, res: dict, path: str, scale: int = 2, rows: int = 12) -> None:
     """The first ``rows`` pictures in a row each, then each tool's render: a contact sheet at ``scale``x."""
     files = [r["file"] for r in next(iter(res.values()))["rows"]][:rows]
-    pics = [load_picture(ROOT / "tests" / "assets" / f"{name}_test" / f) for f in files]
+    pics = pictures_of(name, len(files))[1]
     cols = [pics] + [[rasterize_svg(r["svg"], p.shape[1] * scale, p.shape[0] * scale) if r["svg"] else np.ones_like(p)
                       for r, p in zip(t["rows"], pics)] for t in res.values()]
     s = 64 * scale
