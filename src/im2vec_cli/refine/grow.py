@@ -25,6 +25,7 @@ from ..vector import VectorImage, VectorShape, fill_vector
 GROW_GAIN = 1.0  # px: a piece is grown where it lowers the render's squared error (summed over RGB) by this many
 # fully wrong pixels' worth (an eye of 6 px on skin gains about 8). Set with ``options.GROW`` on bench/parts.py's
 # test-split runs (2 and 16 paths -> 1 and 32: emoji small parts kept 89% -> 91%); its held-out sets not tuned on
+CANDIDATES = 4  # pieces weighed per path that may grow: bounds the work on a picture of thousands of pieces (a photo)
 BACKGROUND_NEAR = 0.1  # RGB distance: a hole whose pixels are this near the background's colour shows the background
 
 
@@ -66,14 +67,32 @@ def open_holes(piece: VectorShape, picture: np.ndarray, background: np.ndarray) 
 
 
 def _over(render: np.ndarray, piece: VectorShape, coverage: np.ndarray) -> np.ndarray:
-    """``render (H, W, 3)`` with ``piece`` of ``coverage (H, W)`` drawn over it in its colour."""
+    """``render (h, w, 3)`` with ``piece`` of ``coverage (h, w)`` drawn over it in its colour."""
     return render + coverage[..., None] * (np.asarray(piece.color) - render)
 
 
+def _candidate(piece: VectorShape, w: int, h: int) -> tuple[VectorShape, tuple[slice, slice], np.ndarray] | None:
+    """A piece with the box of the pixels it covers and its coverage there (``None``: it covers none)."""
+    cov = shape_coverage(piece, w, h)
+    ys, xs = np.nonzero(cov)
+    if not len(ys):
+        return None
+    box = (slice(ys.min(), ys.max() + 1), slice(xs.min(), xs.max() + 1))
+    return piece, box, cov[box]
+
+
+def _gain(render: np.ndarray, picture: np.ndarray, cand) -> float:
+    """How much drawing the candidate over ``render`` lowers its squared error against ``picture``."""
+    piece, box, cov = cand
+    now, want = render[box], picture[box]
+    return float(((now - want) ** 2).sum() - ((_over(now, piece, cov) - want) ** 2).sum())
+
+
 def grown(vec: VectorImage, picture: np.ndarray, reading: Reading, s: Plan) -> tuple[VectorImage, int]:
-    """``vec`` (any frame) with at most ``s.grow`` pieces of the picture's own trace added on top where they pay
-    (``GROW_GAIN``) judged on ``picture`` (its size: the work's), and no more than ``s.max_paths`` shapes in all; and how many were added. ``reading``: what
-    the picture is (``trace.read``), which shapes its trace."""
+    """``vec`` (any frame) with at most ``s.grow`` pieces of the picture's own trace added on top where they
+    pay (``GROW_GAIN``), judged on ``picture`` (its size: the work's), and no more than ``s.max_paths`` shapes
+    in all; and how many were added. ``reading``: what the picture is (``trace.read``), which shapes its trace.
+    Each round weighs only the ``CANDIDATES * s.grow`` pieces that paid most at the start, each over its box."""
     h, w = picture.shape[:2]
     most = s.grow if s.max_paths is None else min(s.grow, s.max_paths - len(vec.shapes))
     if most <= 0 or not vec.shapes:
@@ -81,18 +100,19 @@ def grown(vec: VectorImage, picture: np.ndarray, reading: Reading, s: Plan) -> t
     render = fill_vector(vec.rescaled(w, h), w, h)
     traced = image_starts([picture], s, [reading])[0].outline(s.tolerance)[0].rescaled(w, h)
     bg = background_color(picture)
-    cands = [(q, shape_coverage(q, w, h)) for sh in traced.shapes for p in pieces(sh)
-             for q in [p, *open_holes(p, picture, bg)]]
+    cands = [c for sh in traced.shapes for p in pieces(sh) for q in [p, *open_holes(p, picture, bg)]
+             if (c := _candidate(q, w, h)) is not None]
+    start = [_gain(render, picture, c) for c in cands]
+    cands = [cands[i] for i in np.argsort(start, kind="stable")[::-1][: CANDIDATES * most]]
     added: list[VectorShape] = []
     while cands and len(added) < most:
-        err = ((render - picture) ** 2).sum()
-        gains = [err - float(((_over(render, p, cov) - picture) ** 2).sum()) for p, cov in cands]
+        gains = [_gain(render, picture, c) for c in cands]
         best = int(np.argmax(gains))
         if gains[best] < GROW_GAIN:
             break
-        p, cov = cands.pop(best)
-        render = _over(render, p, cov)
-        added.append(p)
+        piece, box, cov = cands.pop(best)
+        render[box] = _over(render[box], piece, cov)
+        added.append(piece)
     if not added:
         return vec, 0
     k = vec.width / w
