@@ -58,6 +58,8 @@ CASES = {
     "--filter-speckle -1": (vectorize.in_speckle_negative, "usage"),
     "--filter-speckle 100000": (vectorize.in_speckle_huge, "usage"),
     "--filter-speckle 2px": (vectorize.in_speckle_not_a_number, "usage"),
+    "--grow -1": (vectorize.in_grow_negative, "usage"),
+    "--grow 100000": (vectorize.in_grow_huge, "usage"),
     "--effort sketch": (vectorize.in_effort_unknown, "usage"),
     "--preset pixel on noise": (vectorize.in_preset_pixel_on_a_photo, "ok"),
     "--preset scan on a white page": (vectorize.in_preset_scan_on_white, "empty"),

@@ -266,6 +266,12 @@ in_preset_unknown = vectorize_with("--preset", "poster")
 in_speckle_negative = vectorize_with("--filter-speckle", "-1")
 
 
+in_grow_negative = vectorize_with("--grow", "-1")
+
+
+in_grow_huge = vectorize_with("--grow", "100000")
+
+
 in_speckle_huge = vectorize_with("--filter-speckle", "100000")
 
 
