@@ -118,9 +118,7 @@ class Projection:
             raise ValueError("clean outlines do not keep the model's paths: keep_all needs clean=False")
         out = [to_vector(self.decoded, i, Placement(size, size), keep_all=keep_all) for i in range(len(self))]
         if self.parts:
-            out = [dataclasses.replace(v, shapes=list(v.shapes) + [dataclasses.replace(p, contours=[c * size for c in
-                                                                                                  p.contours])
-                                                                   for p in parts])
+            out = [dataclasses.replace(v, shapes=list(v.shapes) + VectorImage(1, 1, parts).rescaled(size, size).shapes)
                    for v, parts in zip(out, self.parts)]
         return [cleaned(v) for v in out] if clean else out
 
@@ -143,8 +141,7 @@ def grown_parts(model: Im2Vec, proj: Projection, images: list[torch.Tensor], gro
     parts = []
     for i, (pic, reading) in enumerate(zip(pics, read_pictures(pics, plan))):
         vec, n = grown(to_vector(proj.decoded, i, Placement(size, size)), pic, reading, plan)
-        parts.append([dataclasses.replace(p, contours=[c / size for c in p.contours])
-                      for p in vec.shapes[len(vec.shapes) - n :]])
+        parts.append(VectorImage(size, size, vec.shapes[len(vec.shapes) - n :]).rescaled(1, 1).shapes)
     return dataclasses.replace(proj, parts=parts)
 
 

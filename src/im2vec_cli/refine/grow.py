@@ -53,17 +53,19 @@ def pieces(shape: VectorShape) -> list[VectorShape]:
     return out
 
 
-def open_holes(piece: VectorShape, picture: np.ndarray, background: np.ndarray) -> list[VectorShape]:
-    """The holes of a ``piece`` through which the picture's ``background`` shows, each a shape of its colour
-    (drawn on top, it opens a hole that fitted paths filled)."""
+def _candidates(piece: VectorShape, picture: np.ndarray, background: np.ndarray) -> list:
+    """The piece and each of its holes through which the picture's ``background`` shows (a shape of the
+    background's colour: drawn on top, it opens a hole that fitted paths filled), each with the box of the
+    pixels it covers and its coverage there (``_boxed``)."""
     h, w = picture.shape[:2]
-    out = []
+    out = [_boxed(piece, shape_coverage(piece, w, h))]
     for c in piece.contours[1:]:
         hole = VectorShape([c], tuple(float(v) for v in background), "nonzero")
-        inside = shape_coverage(hole, w, h) > 0.5
+        cov = shape_coverage(hole, w, h)
+        inside = cov > 0.5
         if inside.any() and np.linalg.norm(np.median(picture[inside], 0) - background) < BACKGROUND_NEAR:
-            out.append(hole)
-    return out
+            out.append(_boxed(hole, cov))
+    return [c for c in out if c is not None]
 
 
 def _over(render: np.ndarray, piece: VectorShape, coverage: np.ndarray) -> np.ndarray:
@@ -71,9 +73,9 @@ def _over(render: np.ndarray, piece: VectorShape, coverage: np.ndarray) -> np.nd
     return render + coverage[..., None] * (np.asarray(piece.color) - render)
 
 
-def _candidate(piece: VectorShape, w: int, h: int) -> tuple[VectorShape, tuple[slice, slice], np.ndarray] | None:
-    """A piece with the box of the pixels it covers and its coverage there (``None``: it covers none)."""
-    cov = shape_coverage(piece, w, h)
+def _boxed(piece: VectorShape, cov: np.ndarray) -> tuple[VectorShape, tuple[slice, slice], np.ndarray] | None:
+    """A piece with the box of the pixels its coverage ``cov (h, w)`` touches and its coverage there
+    (``None``: it covers none)."""
     ys, xs = np.nonzero(cov)
     if not len(ys):
         return None
@@ -100,8 +102,7 @@ def grown(vec: VectorImage, picture: np.ndarray, reading: Reading, s: Plan) -> t
     render = fill_vector(vec.rescaled(w, h), w, h)
     traced = image_starts([picture], s, [reading])[0].outline(s.tolerance)[0].rescaled(w, h)
     bg = background_color(picture)
-    cands = [c for sh in traced.shapes for p in pieces(sh) for q in [p, *open_holes(p, picture, bg)]
-             if (c := _candidate(q, w, h)) is not None]
+    cands = [c for sh in traced.shapes for p in pieces(sh) for c in _candidates(p, picture, bg)]
     start = [_gain(render, picture, c) for c in cands]
     cands = [cands[i] for i in np.argsort(start, kind="stable")[::-1][: CANDIDATES * most]]
     added: list[VectorShape] = []
@@ -115,6 +116,5 @@ def grown(vec: VectorImage, picture: np.ndarray, reading: Reading, s: Plan) -> t
         added.append(piece)
     if not added:
         return vec, 0
-    k = vec.width / w
-    shapes = [dataclasses.replace(p, contours=[c * k for c in p.contours]) for p in added]
+    shapes = VectorImage(w, h, added).rescaled(vec.width, vec.height).shapes
     return dataclasses.replace(vec, shapes=list(vec.shapes) + shapes), len(added)
