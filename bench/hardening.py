@@ -24,7 +24,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from PIL import Image, ImageDraw, ImageFilter
+from PIL import Image, ImageDraw, ImageFilter, ImageFont
 
 CAP = 8 * 2**30
 EXE = [sys.executable, "-m", "im2vec_cli"]
@@ -106,6 +106,11 @@ def make(d: Path) -> dict[str, tuple[list[str], int, str | None]]:
         x, y, r = *rng.uniform(0, 512, 2), rng.uniform(3, 64)
         ImageDraw.Draw(clip).ellipse((x - r, y - r, x + r, y + r), fill=palette[i % 10])
     clip.save(d / "clipart512.png")
+    page = Image.new("1", (2550, 3300), 1)  # a 300 dpi 1-bit page of text: traced whole (options.MAX_BILEVEL_PIXELS)
+    font = ImageFont.load_default(size=34)
+    for y in range(150, 3150, 60):
+        ImageDraw.Draw(page).text((150, y), " ".join(f"word{(y * 7 + i) % 97}" for i in range(24)), font=font, fill=0)
+    page.save(d / "page1bit.png")
     (d / "scans").mkdir()
     for i in range(10):
         w, h = (int(v) for v in rng.integers(400, 601, 2))
@@ -124,6 +129,8 @@ def make(d: Path) -> dict[str, tuple[list[str], int, str | None]]:
         "RGB noise 1024²": (["vectorize", "noise1024.png", "-o", "noise1024.svg"], 90, "noise1024.png"),
         "checkerboard 1024² (1 px)": (["vectorize", "checker1024.png", "-o", "checker1024.svg"], 90, "checker1024.png"),
         "colour gradient 2048²": (["vectorize", "gradient2048.png", "-o", "gradient2048.svg"], 90, "gradient2048.png"),
+        "1-bit page of text 2550 x 3300 (300 dpi, traced whole)": (["vectorize", "page1bit.png", "-o", "page1bit.svg"],
+                                                                    120, "page1bit.png"),
         "RGB noise 4096²": (["vectorize", "noise4096.png", "-o", "noise4096.svg"], 120, None),
         "blocks 8000² (40 px, 12 colours)": (["vectorize", "blocks8000.png", "-o", "blocks8000.svg"], 120, None),
         "render: one path of 5,000 random lines": (["render", "lines5000.svg", "-o", "lines.png"], 60, None),

@@ -175,13 +175,17 @@ def test_the_module_example_runs(monkeypatch):
 
 def test_the_memory_budget_sets_the_work_size():
     """``max_memory`` (bytes) sets how large a copy is worked on and how large a picture may be
-    read; the default (2 GiB) keeps the 2048² work size; a budget under 768 MiB is refused."""
-    from im2vec_cli.options import MAX_WORK_PIXELS, VectorizeOptions
+    read; the default (2 GiB) keeps the 2048² work size, and traces a two-colour picture whole up to
+    12.6 MP (a 300 dpi page); a budget under 768 MiB is refused."""
+    from im2vec_cli.options import MAX_BILEVEL_PIXELS, MAX_WORK_PIXELS, VectorizeOptions
 
     default = VectorizeOptions()
     assert default.work_pixels() == MAX_WORK_PIXELS and default.max_input_pixels() > 64_000_000
+    assert default.bilevel_pixels() == (2**31 - 2**29) // 128 > 2550 * 3300
     small = VectorizeOptions(max_memory=2**30)
     assert small.work_pixels() == 2**29 // 256 and small.max_input_pixels() == 2**29 // 16
+    assert small.bilevel_pixels() == 2**29 // 128
+    assert VectorizeOptions(max_memory=2**35).bilevel_pixels() == MAX_BILEVEL_PIXELS
     with pytest.raises(ValueError, match="max_memory"):
         VectorizeOptions(max_memory=100 * 2**20)
 

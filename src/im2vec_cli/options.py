@@ -47,7 +47,11 @@ WORK_BYTES_PER_PIXEL = 256  # tracing and polishing, per pixel of the copy worke
 MAX_SPECKLE = 1000  # `vectorize --filter-speckle`: px a side at most
 MAX_GROW = 256  # `vectorize --grow`: paths at most (each one more shape in every step of the polish)
 GROW = 32  # paths grown at most by default (``refine.grow``): a face's parts and a flag's stars, not a photo's pieces
-MAX_WORK_PIXELS = 2048 * 2048  # the largest copy worked on, whatever the budget: 2048 px resolve any outline
+MAX_WORK_PIXELS = 2048 * 2048  # the largest copy worked on, whatever the budget: 2048 px resolve any outline...
+MAX_BILEVEL_PIXELS = 4096 * 4096  # ...but a picture of exactly two colours (a 1-bit scan: a 300 dpi page is 2550 x 3300)
+# is traced whole up to this: an averaged copy blurs its pixel edges (issue 69: a typewritten page's MSE 0.0053 at
+# the copy, 0.0014 whole; potrace 0.0029), and it is never polished (options.Plan.max_side)
+BILEVEL_BYTES_PER_PIXEL = 128  # tracing a two-colour picture, per pixel (bench/hardening.py: PEAK)
 
 
 @dataclass(frozen=True)
@@ -67,7 +71,9 @@ class Plan:
     compile: bool = False
     preset: str | None = None  # the kind of picture (None: the kind it looks like, ``trace.read``)
     speckle: int | None = None  # px (None: by the picture's size, ``trace.read``)
-    work_pixels: int = MAX_WORK_PIXELS  # a larger picture is vectorized at an area-averaged copy this large
+    work_pixels: int = MAX_WORK_PIXELS  # a larger picture is vectorized at an area-averaged copy this large...
+    bilevel_pixels: int = min(MAX_BILEVEL_PIXELS, (MEMORY_DEFAULT - BASE_BYTES) // BILEVEL_BYTES_PER_PIXEL)  # ...and
+    # one of exactly two colours at a copy this large
     # the optimisation (``refine``)
     passes: bool | None = None  # refinement's start drawn through the model's picture door (``Im2Vec.decode``
     # with the picture: its path and point passes, colours solved: what --no-refine draws) rather than from the
@@ -232,6 +238,11 @@ class VectorizeOptions:
         budget = (self.max_memory or MEMORY_DEFAULT) - BASE_BYTES
         return min(MAX_WORK_PIXELS, budget // WORK_BYTES_PER_PIXEL)
 
+    def bilevel_pixels(self) -> int:
+        """``work_pixels`` of a picture of exactly two colours (traced, never polished: cheaper by the pixel)."""
+        budget = (self.max_memory or MEMORY_DEFAULT) - BASE_BYTES
+        return max(self.work_pixels(), min(MAX_BILEVEL_PIXELS, budget // BILEVEL_BYTES_PER_PIXEL))
+
     def max_input_pixels(self) -> int:
         """The most pixels a picture may have to be read within the memory budget."""
         return ((self.max_memory or MEMORY_DEFAULT) - BASE_BYTES) // READ_BYTES_PER_PIXEL
@@ -250,7 +261,7 @@ class VectorizeOptions:
         return Plan(refine=self.refine, parts=self.parts, colors=self.colors, max_paths=self.max_paths,
                     segments=self.segments, quality=self.quality, compile=self.compile,
                     preset=None if self.preset == "auto" else self.preset, speckle=self.speckle,
-                    work_pixels=self.work_pixels(), **fields)
+                    work_pixels=self.work_pixels(), bilevel_pixels=self.bilevel_pixels(), **fields)
 
     def idle(self, given: set[str]) -> list[str]:
         """Of the fields named in ``given`` (those the user set), a note for each that does nothing

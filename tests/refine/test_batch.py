@@ -182,7 +182,7 @@ def test_a_picture_beyond_the_work_size_is_vectorized_at_a_smaller_copy(tmp_path
     model = from_pretrained(make_tiny_model(tmp_path / "tiny"))
     img = torch.ones(3, 120, 160)
     img[:, 20:100, 30:70] = 0.0
-    img[:, 40:60, 100:140] = 0.0
+    img[:, 40:60, 100:140] = 0.4  # three colours: a two-colour picture is traced whole (``trace.batch.bilevel``)
     full, _ = refine(model, img, QUICK)
     ((small, _),) = refine_batch(model, [img], dataclasses.replace(QUICK, work_pixels=60 * 80))
     check_svg(to_svg(small), 160, 120)

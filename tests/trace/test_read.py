@@ -352,3 +352,29 @@ def test_a_scanned_bold_silhouette_is_a_scan():
     vec = api.vectorize(picture)
     assert len(vec.shapes) == 1 and iou(rasterize_svg(vec.to_svg(), size, size).mean(-1) < 0.5,
                                         clean.mean(-1) < 0.5) > 0.95
+
+
+def test_a_two_colour_picture_is_traced_whole_and_a_dither_at_the_copy():
+    """A picture of exactly two colours (a 1-bit scan) beyond ``Plan.work_pixels`` is read whole,
+    up to ``Plan.bilevel_pixels`` (an averaged copy blurs its pixel edges: issue 69's typewritten
+    page); one of three colours, or a two-colour dither (its grain is the grey it stands for), is
+    read at the copy."""
+    import dataclasses
+
+    from im2vec_cli.options import Plan
+    from im2vec_cli.trace.batch import bilevel, read_pictures
+
+    page = np.ones((120, 160, 3))
+    page[20:100:10, 20:140] = 0.0  # lines of "text"
+    page[20:100, 30:34] = 0.0
+    dither = np.ones((120, 160, 3)) * (np.indices((120, 160)).sum(0) % 2 == 0)[..., None]
+    grey = page.copy()
+    grey[50:60, 50:60] = 0.5
+    assert bilevel(page) and not bilevel(dither) and not bilevel(grey) and bilevel(np.ones((8, 8, 3)))
+    assert bilevel(page * 0.3 + 0.2)  # any two colours
+    plan = dataclasses.replace(Plan(), work_pixels=60 * 80, bilevel_pixels=120 * 160)
+    shapes = [r.picture.shape[:2] for r in read_pictures([page, dither, grey], plan)]
+    assert shapes[0] == (120, 160) and shapes[1][0] * shapes[1][1] <= 60 * 80 and shapes[2][0] < 120
+    small = dataclasses.replace(plan, bilevel_pixels=100 * 100)  # beyond its own bound too: the copy
+    h, w, _ = read_pictures([page], small)[0].picture.shape
+    assert h * w <= 100 * 100

@@ -91,7 +91,8 @@ PLAN_SAMPLE = 64  # --jobs auto: the pictures whose sizes are read to weigh the 
 @click.option("--address", default=None, help="With --engine ray: the Ray cluster's address (ray://host:10001, auto).")
 @click.option("--max-memory", type=BYTES, default=None, metavar="SIZE",
               help="Memory budget of the process (e.g. 1G, 800M): a picture too large to read within it is refused "
-                   "before decoding, and a large one is vectorized at a smaller copy (at most 2048x2048). [2G]")
+                   "before decoding, and a large one is vectorized at a smaller copy (at most 2048x2048; a two-colour one, a 1-bit scan, "
+                   "up to 12.6 MP at 2G). [2G]")
 @model_options
 @click.pass_context
 def vectorize(ctx, inputs, output, segments, quality, max_paths, parts, grow, tolerance, colors, refine, effort, preset,

@@ -71,13 +71,34 @@ def workable(picture: np.ndarray, most: int) -> np.ndarray:
     return torch.nn.functional.interpolate(x, size=size, mode="area")[0].permute(1, 2, 0).numpy()
 
 
+BILEVEL_GRAIN = 0.15  # changes of colour a pixel (to its right and lower neighbours) past which a two-colour
+# picture is a dither, a halftone or noise (a 300 dpi page of text: 0.02-0.06; an ordered dither: 1.2)
+
+
+def bilevel(picture: np.ndarray) -> bool:
+    """Whether ``picture (H, W, 3)`` holds at most two colours, exactly (a 1-bit scan, a fax), and
+    is not grain (``BILEVEL_GRAIN``: at an averaged copy a dither's grain is the grey it stands for)."""
+    flat = picture.reshape(-1, picture.shape[-1])
+    other = (flat != flat[0]).any(1)
+    if not other.any():
+        return True
+    b = flat[int(np.argmax(other))]
+    if not (~other | (flat == b).all(1)).all():
+        return False
+    ink = other.reshape(picture.shape[:2])
+    changes = np.count_nonzero(ink[:, 1:] != ink[:, :-1]) + np.count_nonzero(ink[1:] != ink[:-1])
+    return changes <= BILEVEL_GRAIN * ink.size
+
+
 def read_pictures(pictures: list[np.ndarray], s: Plan) -> list[Reading]:
-    """Each picture (at most ``s.work_pixels`` pixels, ``workable``) read (``read.read``, as
-    ``s.preset``, ``s.speckle`` and ``s.colors`` say); its clean picture as refinement sees it,
-    in float32."""
+    """Each picture (at most ``s.work_pixels`` pixels, or ``s.bilevel_pixels`` if ``bilevel``:
+    ``workable``) read (``read.read``, as ``s.preset``, ``s.speckle`` and ``s.colors`` say); its clean
+    picture as refinement sees it, in float32."""
     out = []
     for pic in pictures:
-        r = read(workable(pic, s.work_pixels).astype(np.float64), s.preset, s.speckle, s.colors)
+        h, w, _ = pic.shape
+        most = s.bilevel_pixels if h * w > s.work_pixels and bilevel(pic) else s.work_pixels
+        r = read(workable(pic, most).astype(np.float64), s.preset, s.speckle, s.colors)
         out.append(dataclasses.replace(r, picture=r.picture.astype(np.float32).astype(np.float64)))
     return out
 

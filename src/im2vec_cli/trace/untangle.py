@@ -11,7 +11,7 @@ import numpy as np
 
 from ..raster.curves import flatten_cubics, flatten_ring, ring_area
 from ..vector import VectorImage, VectorShape, skia
-from .ndops import run_places
+from .ndops import label, run_places
 from .simplify import simplify_contours
 
 
@@ -20,19 +20,64 @@ def untangle(vec: VectorImage, merge_tol: float = 0.25) -> VectorImage:
     loop a fraction of a pixel wide) replaced by the exact outline of what it fills under its
     rule (Skia's path ops: ``skia-pathops``), so no pin hole or sliver is left at any zoom;
     the segments path ops split are merged again within ``merge_tol`` px where that crosses
-    nothing. Shapes without crossings are kept as they are, and so is a shape that Skia's path
-    ops fail on (rare: nearly coincident curves), with its coordinates snapped and without."""
+    nothing. A shape of many contours is untangled by its groups (``_groups``: contours whose
+    boxes meet), only those that cross: a page of text is one shape of thousands of letters, a
+    few of them tangled. Shapes without crossings are kept as they are, and so is a group that
+    Skia's path ops fail on (rare: nearly coincident curves), with its coordinates snapped and without."""
     tangled = crosses_each([sh.contours for sh in vec.shapes])
-    clean = {k: _outline(vec.shapes[k]) for k in np.flatnonzero(tangled).tolist()}  # None: Skia could not
-    clean = {k: c for k, c in clean.items() if c is not None}  # resolve it (its loop is a fraction of a pixel): kept
+    parts = {k: _untangled(vec.shapes[k]) for k in np.flatnonzero(tangled).tolist()}
+    parts = {k: p for k, p in parts.items() if p[1]}  # (kept, outlined); none outlined: Skia could not
+    clean = {k: new for k, (_, new) in parts.items()}  # resolve it (its loop is a fraction of a pixel): kept
     long = [(k, i) for k, cs in clean.items() for i, c in enumerate(cs) if len(c) >= 9]  # path ops split curves:
     merged = {k: list(cs) for k, cs in clean.items()}  # merged again, all shapes' contours at once
     for (k, i), c in zip(long, simplify_contours([clean[k][i] for k, i in long], merge_tol)):
         merged[k][i] = c
     again = dict(zip(merged, crosses_each(list(merged.values()))))
-    shapes = [VectorShape(clean[k] if again[k] else merged[k], sh.color, "nonzero") if k in clean else sh
+    shapes = [VectorShape(parts[k][0] + (clean[k] if again[k] else merged[k]), sh.color,
+                          sh.fill_rule if parts[k][0] else "nonzero") if k in clean else sh
               for k, sh in enumerate(vec.shapes)]  # untangled shapes nonzero; the others keep our cubics and starts
     return VectorImage(vec.width, vec.height, shapes)
+
+
+GROUP_MIN = 8  # contours a shape has before it is untangled by its groups...
+GROUP_PIXELS = 1 << 26  # ...and the most pixels of the grid its groups are found on (else one group)
+
+
+def _untangled(sh: VectorShape) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """``sh``'s contours as ``(kept, outlined)``: those of its groups that cross nothing, and the
+    ``_outline`` of each group that crosses (a group Skia's path ops fail on kept). The groups'
+    fills are apart, so each is outlined alone; the outlines' winding is 0 or 1, the same under
+    either rule, and the kept contours keep ``sh``'s rule."""
+    if len(sh.contours) < GROUP_MIN:
+        out = _outline(sh)
+        return (list(sh.contours), []) if out is None else ([], out)
+    groups = _groups(sh.contours)
+    members = [[sh.contours[i] for i in g] for g in groups]
+    kept, outlined = [], []
+    for cs, crossed in zip(members, crosses_each(members)):
+        out = _outline(VectorShape(cs, sh.color, sh.fill_rule)) if crossed else None
+        (kept.extend(cs) if out is None else outlined.extend(out))
+    return kept, outlined
+
+
+def _groups(contours: list[np.ndarray]) -> list[list[int]]:
+    """The contours whose boxes (of their control points, which hold their curves) meet, directly
+    or through others: indices, in order. Found on a pixel grid, each box a pixel or two larger,
+    so boxes that meet always share a group (and boxes a pixel apart may)."""
+    lo = np.array([np.asarray(c).min(0) for c in contours])
+    hi = np.array([np.asarray(c).max(0) for c in contours])
+    a = np.floor(lo - lo.min(0)).astype(np.int64)
+    b = np.floor(hi - lo.min(0)).astype(np.int64) + 2
+    w, h = b.max(0)
+    if w * h > GROUP_PIXELS:
+        return [list(range(len(contours)))]
+    grid = np.zeros((h, w), dtype=bool)
+    for (x0, y0), (x1, y1) in zip(a, b):
+        grid[y0:y1, x0:x1] = True
+    key = label(grid)[0][a[:, 1], a[:, 0]]
+    order = np.argsort(key, kind="stable")
+    cuts = np.flatnonzero(np.diff(key[order])) + 1
+    return [g.tolist() for g in sorted(np.split(order, cuts), key=lambda g: g[0])]
 
 
 def _outline(sh: VectorShape, snap: float = 1 / 256) -> list[np.ndarray] | None:
