@@ -111,6 +111,8 @@ def make(d: Path) -> dict[str, tuple[list[str], int, str | None]]:
     for y in range(150, 3150, 60):
         ImageDraw.Draw(page).text((150, y), " ".join(f"word{(y * 7 + i) % 97}" for i in range(24)), font=font, fill=0)
     page.save(d / "page1bit.png")
+    Image.fromarray(checker.repeat(4, 0).repeat(4, 1)).convert("1").save(d / "checker1bit.png")  # grain: the copy,
+    # where its 4 px squares are 2 px ones, read as pixel art
     (d / "scans").mkdir()
     for i in range(10):
         w, h = (int(v) for v in rng.integers(400, 601, 2))
@@ -131,6 +133,7 @@ def make(d: Path) -> dict[str, tuple[list[str], int, str | None]]:
         "colour gradient 2048²": (["vectorize", "gradient2048.png", "-o", "gradient2048.svg"], 90, "gradient2048.png"),
         "1-bit page of text 2550 x 3300 (300 dpi, traced whole)": (["vectorize", "page1bit.png", "-o", "page1bit.svg"],
                                                                     120, "page1bit.png"),
+        "1-bit checkerboard 4096² (4 px)": (["vectorize", "checker1bit.png", "-o", "checker1bit.svg"], 120, None),
         "RGB noise 4096²": (["vectorize", "noise4096.png", "-o", "noise4096.svg"], 120, None),
         "blocks 8000² (40 px, 12 colours)": (["vectorize", "blocks8000.png", "-o", "blocks8000.svg"], 120, None),
         "render: one path of 5,000 random lines": (["render", "lines5000.svg", "-o", "lines.png"], 60, None),

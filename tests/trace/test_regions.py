@@ -90,6 +90,29 @@ def test_pictures_beyond_the_region_bound_are_one_trace_error(monkeypatch):
     assert len(regions.trace(noise, max_regions=10)) <= 10  # the ten largest
 
 
+def test_a_checkerboard_of_corner_touches_is_refused_before_path_ops(monkeypatch):
+    """A hard-edged picture whose pixels meet only at their corners (a 2 px checkerboard, read as
+    pixel art) is refused by its count of corner touches, before Skia's union of its squares,
+    whose time grows with their square (65,536 touches ran past a minute); a small one is traced."""
+    import im2vec_cli.trace.pixels as pixels
+    import im2vec_cli.trace.regions as regions
+
+    def board(n):
+        return np.broadcast_to(((np.indices((n, n)) // 2).sum(0) % 2)[..., None], (n, n, 3)).astype(float)
+
+    m = board(8)[..., 0] > 0
+    assert pixels.corner_touches(m) == 9  # the board's inner corners, 3 x 3
+    assert pixels.corner_touches(np.eye(6, dtype=bool)) == 5  # a diagonal line: one a step
+    assert pixels.corner_touches(np.ones((6, 6), dtype=bool)) == 0
+    calls = []
+    monkeypatch.setattr(regions, "pixel_polygons", lambda mask: calls.append(pixels.corner_touches(mask)) or [])
+    with pytest.raises(TraceError, match="corners"):
+        regions.trace(board(256), kind="pixel")  # 16,129 touches in the layer of its black squares
+    assert max(calls, default=0) <= pixels.MAX_TOUCHES  # the layer that has them never reached path ops
+    monkeypatch.undo()
+    assert len(regions.trace(board(32), kind="pixel")) >= 1
+
+
 def _absorb_one_at_a_time(labels, min_px):
     """The reference: each speck in turn takes the commonest label of its 4-neighbours."""
     from scipy.ndimage import binary_dilation, label

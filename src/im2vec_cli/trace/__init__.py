@@ -8,6 +8,7 @@ one pixel a block). Bottom up:
   picture's exact colours, else a quantised palette, specks absorbed);
 - ``regions``: the picture's flat-colour regions as polygons (two-tone: one sub-pixel level
   set; multi-colour: stacked regions; hard-edged: along the pixel edges), bounded in number;
+- ``pixels``: pixel art's exact outlines (the union of its pixel squares), bounded by corner touches;
 - ``fit``: rings to closed cubics within a tolerance, corners kept sharp (``Corners`` flags);
 - ``simplify``: fewer segments for the same outline (neighbours merged within a tolerance);
 - ``outline``: ``traced`` (the picture's regions fitted), ``redrawn`` (any vector image

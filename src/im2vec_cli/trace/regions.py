@@ -33,6 +33,7 @@ from ..errors import TraceError
 from ..raster.curves import ring_area
 from .ndops import norm3
 from .palette import FLAT_BY_LEVELS, _flat_pixels, hard_palette, posterize, quantize
+from .pixels import check_touches, corner_touches, pixel_polygons
 
 MAX_REGIONS = 10_000  # regions (or rings of a two-tone picture) traced at most: a few ms each...
 MAX_PIECES = 100_000  # ...and pieces at most when --max-paths keeps only the largest of them
@@ -208,8 +209,11 @@ def _layers(palette: np.ndarray, labels: np.ndarray, white_around: bool, exact: 
     areas = np.bincount(labels[~around], minlength=len(palette))
     order = [k for k in np.argsort(-areas, kind="stable") if areas[k] > 0]
     regions, covered = [], ~around
+    touches = 0
     for k in order:
         if exact:
+            touches += corner_touches(covered)
+            check_touches(touches)
             rings = pixel_polygons(covered)
         else:  # the colours above pulled in from the outline they share with it: no sliver of this one shows there
             tucked = covered & ~(covered & (labels != k) & dilate(~covered, iterations=TUCK))
@@ -235,37 +239,6 @@ def _with_background(bg: np.ndarray, regions: list[Region], shape, exact: bool =
     h, w = shape[:2]
     canvas = np.array([[0, 0], [w, 0], [w, h], [0, h]], dtype=np.float64)
     return [Region(tuple(bg.tolist()), [canvas], exact)] + regions
-
-
-def pixel_polygons(mask: np.ndarray) -> list[np.ndarray]:
-    """Closed rings ``(N, 2)`` along the pixel edges around ``mask (H, W)``: its exact outline
-    (the union of its pixels' squares, Skia's path ops), corners only where the outline turns,
-    outer boundaries clockwise on screen and holes counter-clockwise."""
-    import pathops
-
-    from ..vector import skia
-
-    pad = np.zeros((mask.shape[0], mask.shape[1] + 2), dtype=np.int8)
-    pad[:, 1:-1] = mask
-    ys, xs = np.nonzero(np.diff(pad, axis=1))  # each row's runs: starts, then ends, in order
-    path = pathops.Path()
-    for y, x0, x1 in zip(ys[0::2].tolist(), xs[0::2].tolist(), xs[1::2].tolist()):
-        path.moveTo(x0, y)
-        path.lineTo(x1, y)
-        path.lineTo(x1, y + 1)
-        path.lineTo(x0, y + 1)
-        path.close()
-    rings = []
-    for c in skia.contours(pathops.simplify(path, fix_winding=True)):
-        ring = c[0::3]  # (N, 2): the anchors of straight sides
-        d0, d1 = ring - np.roll(ring, 1, 0), np.roll(ring, -1, 0) - ring
-        turn = d0[:, 0] * d1[:, 1] - d0[:, 1] * d1[:, 0]
-        ring = ring[turn != 0]  # points along a straight side are not corners
-        if len(ring) >= 3:
-            rings.append(ring)
-    if rings and float(ring_area(max(rings, key=lambda r: np.ptp(r, 0).prod()))) < 0:
-        rings = [r[::-1].copy() for r in rings]  # outer boundaries clockwise on screen
-    return rings
 
 
 def _check_pieces(n: int, what: str, max_regions: int | None, lift: bool = True) -> None:
