@@ -104,12 +104,13 @@ def test_a_checkerboard_of_corner_touches_is_refused_before_path_ops(monkeypatch
     assert pixels.corner_touches(m) == 9  # the board's inner corners, 3 x 3
     assert pixels.corner_touches(np.eye(6, dtype=bool)) == 5  # a diagonal line: one a step
     assert pixels.corner_touches(np.ones((6, 6), dtype=bool)) == 0
-    calls = []
-    monkeypatch.setattr(regions, "pixel_polygons", lambda mask: calls.append(pixels.corner_touches(mask)) or [])
-    with pytest.raises(TraceError, match="corners"):
-        regions.trace(board(256), kind="pixel")  # 16,129 touches in the layer of its black squares
-    assert max(calls, default=0) <= pixels.MAX_TOUCHES  # the layer that has them never reached path ops
-    monkeypatch.undo()
+    for max_regions in (None, 5):  # its layers, or with --max-paths its largest pieces
+        calls = []
+        monkeypatch.setattr(pixels, "pixel_polygons", lambda mask, calls=calls: calls.append(pixels.corner_touches(mask)) or [])
+        with pytest.raises(TraceError, match="corners"):
+            regions.trace(board(256), max_regions=max_regions, kind="pixel")  # 16,129 touches in its black squares
+        assert max(calls, default=0) <= pixels.MAX_TOUCHES  # the mask that has them never reached path ops
+        monkeypatch.undo()
     assert len(regions.trace(board(32), kind="pixel")) >= 1
 
 

@@ -54,8 +54,17 @@ def corner_touches(mask: np.ndarray) -> int:
     return int(np.count_nonzero((a & d & ~b & ~c) | (b & c & ~a & ~d)))
 
 
-def check_touches(n: int) -> None:
-    """``TraceError`` when a hard-edged picture's exact layers hold more than ``MAX_TOUCHES`` corner touches."""
-    if n > MAX_TOUCHES:
-        raise TraceError(f"the picture's pixels meet only at their corners {n:,} times or more (a dither or a "
-                         f"checkerboard?), more than the {MAX_TOUCHES:,} im2vec outlines exactly")
+class ExactOutlines:
+    """``pixel_polygons`` of one picture's masks, one after another (its layers, or its pieces),
+    their corner touches counted together: a ``TraceError`` when they pass ``MAX_TOUCHES``, before
+    the mask that passes them reaches path ops."""
+
+    def __init__(self):
+        self.touches = 0
+
+    def __call__(self, mask: np.ndarray) -> list[np.ndarray]:
+        self.touches += corner_touches(mask)
+        if self.touches > MAX_TOUCHES:
+            raise TraceError(f"the picture's pixels meet only at their corners {self.touches:,} times or more (a "
+                             f"dither or a checkerboard?), more than the {MAX_TOUCHES:,} im2vec outlines exactly")
+        return pixel_polygons(mask)

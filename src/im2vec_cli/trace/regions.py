@@ -33,7 +33,7 @@ from ..errors import TraceError
 from ..raster.curves import ring_area
 from .ndops import norm3
 from .palette import FLAT_BY_LEVELS, _flat_pixels, hard_palette, posterize, quantize
-from .pixels import check_touches, corner_touches, pixel_polygons
+from .pixels import ExactOutlines
 
 MAX_REGIONS = 10_000  # regions (or rings of a two-tone picture) traced at most: a few ms each...
 MAX_PIECES = 100_000  # ...and pieces at most when --max-paths keeps only the largest of them
@@ -209,12 +209,10 @@ def _layers(palette: np.ndarray, labels: np.ndarray, white_around: bool, exact: 
     areas = np.bincount(labels[~around], minlength=len(palette))
     order = [k for k in np.argsort(-areas, kind="stable") if areas[k] > 0]
     regions, covered = [], ~around
-    touches = 0
+    outline = ExactOutlines()
     for k in order:
         if exact:
-            touches += corner_touches(covered)
-            check_touches(touches)
-            rings = pixel_polygons(covered)
+            rings = outline(covered)
         else:  # the colours above pulled in from the outline they share with it: no sliver of this one shows there
             tucked = covered & ~(covered & (labels != k) & dilate(~covered, iterations=TUCK))
             rings = level_polygons(gaussian(tucked * 1.0, ALIAS_SIGMA))
@@ -291,19 +289,19 @@ def _stacked_regions(image: np.ndarray, palette: np.ndarray, labels: np.ndarray,
     """Connected pieces of each colour (``_pieces``), stacked largest (by enclosed area) at the back,
     each extended under the pieces above it; neighbouring pieces of one colour share a region.
     Each piece is worked out within its box. ``exact``: outlines along the pixel edges
-    (``pixel_polygons``), else the sub-pixel 0.5 level of each piece's edge field."""
+    (``pixels.ExactOutlines``), else the sub-pixel 0.5 level of each piece's edge field."""
     from .ndops import dilate
 
     pieces = sorted(_pieces(palette, labels, max_regions, white_canvas, each_one), key=lambda t: -t[0])
     if max_regions is not None:
         pieces = pieces[:max_regions]
     above = np.zeros(labels.shape, dtype=bool)
-    extended = []
+    extended, outline = [], ExactOutlines()
     for _, k, box, mask, filled in reversed(pieces):  # front to back: `above` is what covers this piece
         over = above[box]
         reach = dilate(mask) & over if exact else _hidden_reach(mask, over)  # exact: never polished
         grown = mask | (filled & over) | reach
-        rings = pixel_polygons(grown) if exact else level_polygons(_edge_field(image[box], palette[k], grown, over))
+        rings = outline(grown) if exact else level_polygons(_edge_field(image[box], palette[k], grown, over))
         extended.append((k, box, grown, [r + (box[1].start, box[0].start) for r in rings]))
         over |= mask
     regions: list[Region] = []
