@@ -50,8 +50,9 @@ GROW = 32  # paths grown at most by default (``refine.grow``): a face's parts an
 MAX_WORK_PIXELS = 2048 * 2048  # the largest copy worked on, whatever the budget: 2048 px resolve any outline...
 MAX_BILEVEL_PIXELS = 4096 * 4096  # ...but a picture of exactly two colours (a 1-bit scan: a 300 dpi page is 2550 x 3300)
 # is traced whole up to this: an averaged copy blurs its pixel edges (issue 69: a typewritten page's MSE 0.0053 at
-# the copy, 0.0014 whole; potrace 0.0029), and it is never polished (options.Plan.max_side)
-BILEVEL_BYTES_PER_PIXEL = 128  # tracing a two-colour picture, per pixel (bench/hardening.py: PEAK)
+# the copy, 0.0013 whole; potrace 0.0029), and it is never polished (options.Plan.max_side)
+BILEVEL_BYTES_PER_PIXEL = 128  # tracing a two-colour picture, per pixel (bench/hardening.py's 1-bit page: 911-959 MiB
+# peak at 8.4 MP, the process included)
 
 
 @dataclass(frozen=True)
@@ -235,17 +236,19 @@ class VectorizeOptions:
     def work_pixels(self) -> int:
         """The most pixels of a picture worked on within the memory budget: a larger picture is
         vectorized at an area-averaged copy this large, then scaled back."""
-        budget = (self.max_memory or MEMORY_DEFAULT) - BASE_BYTES
-        return min(MAX_WORK_PIXELS, budget // WORK_BYTES_PER_PIXEL)
+        return min(MAX_WORK_PIXELS, self._budget() // WORK_BYTES_PER_PIXEL)
 
     def bilevel_pixels(self) -> int:
         """``work_pixels`` of a picture of exactly two colours (traced, never polished: cheaper by the pixel)."""
-        budget = (self.max_memory or MEMORY_DEFAULT) - BASE_BYTES
-        return max(self.work_pixels(), min(MAX_BILEVEL_PIXELS, budget // BILEVEL_BYTES_PER_PIXEL))
+        return max(self.work_pixels(), min(MAX_BILEVEL_PIXELS, self._budget() // BILEVEL_BYTES_PER_PIXEL))
 
     def max_input_pixels(self) -> int:
         """The most pixels a picture may have to be read within the memory budget."""
-        return ((self.max_memory or MEMORY_DEFAULT) - BASE_BYTES) // READ_BYTES_PER_PIXEL
+        return self._budget() // READ_BYTES_PER_PIXEL
+
+    def _budget(self) -> int:
+        """Bytes of the memory budget left for pictures: ``max_memory`` less the interpreter, torch and a model."""
+        return (self.max_memory or MEMORY_DEFAULT) - BASE_BYTES
 
     def resolve(self) -> Plan:
         """The run's ``Plan``: the effort's settings with these choices applied (a ``tolerance`` or

@@ -38,7 +38,7 @@ from .model.vae import Decoded, Im2Vec
 from .optim import Adam
 from .raster import gaussian_pyramid, pyramid_l2, render_pyramid
 from .trace import cleaned
-from .vector import VectorImage, VectorShape, resolve_overlaps
+from .vector import VectorImage, VectorShape, picture_array, resolve_overlaps
 
 
 @dataclass(frozen=True)
@@ -137,7 +137,7 @@ def grown_parts(model: Im2Vec, proj: Projection, images: list[torch.Tensor], gro
     from .trace import read_pictures
 
     size, plan = model.config.image_size, Plan(grow=grow)
-    pics = [model_input(model, im)[0].detach().permute(1, 2, 0).double().cpu().numpy() for im in images]
+    pics = [picture_array(model_input(model, im)[0]) for im in images]
     parts = []
     for i, (pic, reading) in enumerate(zip(pics, read_pictures(pics, plan))):
         vec, n = grown(to_vector(proj.decoded, i, Placement(size, size)), pic, reading, plan)

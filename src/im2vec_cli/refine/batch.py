@@ -15,7 +15,7 @@ from ..model.vae import Im2Vec
 from ..options import PARTS, Plan
 from ..trace import Reading, read_pictures
 from ..trace.batch import workable
-from ..vector import VectorImage
+from ..vector import VectorImage, picture_array
 from .clean import clean_outlines, flat_apart, on_canvas
 from .stages import Refinement, model_paths
 
@@ -67,7 +67,7 @@ def refine_batch(model: Im2Vec, images: list[torch.Tensor], plan: Plan = Plan(),
     not read again."""
     sizes = _sizes(images, plan.parts)
     images, readings = _read(images, plan, on_step, readings)
-    out, todo = flat_apart([_array(im) for im in images])  # a flat one: the same answer as amortised vectorisation
+    out, todo = flat_apart([picture_array(im) for im in images])  # a flat one: the same answer as amortised vectorisation
     by_size: dict[tuple[int, int], list[int]] = {}
     for i in todo:
         by_size.setdefault(tuple(images[i].shape[1:]), []).append(i)
@@ -94,7 +94,7 @@ def _refined(model: Im2Vec, images: list[torch.Tensor], plan: Plan, on_step, rea
     run = Refinement(model, images, plan, on_step)
     if plan.parts == "model":
         return model_paths(run, list(range(len(images))), plan)
-    return clean_outlines([_array(im) for im in run.images], run, plan, readings=readings, on_stage=on_step)
+    return clean_outlines([picture_array(im) for im in run.images], run, plan, readings=readings, on_stage=on_step)
 
 
 def _sizes(images: list[torch.Tensor], parts: str) -> list[tuple[int, int]]:
@@ -114,18 +114,13 @@ def _read(images: list[torch.Tensor], plan: Plan, on_step=None, readings: list[R
     hears ``Stage("read")``. Else each picture at most ``plan.work_pixels`` pixels, and no readings."""
     most = plan.work_pixels
     if plan.parts != "clean":
-        return [_tensor(workable(_array(im), most), im) if im.shape[1] * im.shape[2] > most else im
+        return [_tensor(workable(picture_array(im), most), im) if im.shape[1] * im.shape[2] > most else im
                 for im in images], None
     if readings is None:
-        readings = read_pictures([_array(im) for im in images], plan)
+        readings = read_pictures([picture_array(im) for im in images], plan)
     if on_step:
         on_step(Stage("read"))
     return [_tensor(r.picture, im) for r, im in zip(readings, images)], readings
-
-
-def _array(image: torch.Tensor) -> np.ndarray:
-    """``(3, H, W)`` -> ``(H, W, 3)`` float64 on the CPU."""
-    return image.detach().permute(1, 2, 0).double().cpu().numpy()
 
 
 def _tensor(picture: np.ndarray, like: torch.Tensor) -> torch.Tensor:

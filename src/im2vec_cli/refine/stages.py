@@ -14,7 +14,7 @@ from ..model.vae import Im2Vec
 from ..optim import Adam
 from ..options import Plan
 from ..trace import Corners, simplify
-from ..vector import VectorImage, resolve_overlaps
+from ..vector import VectorImage, picture_array, resolve_overlaps
 from .core import _Fitter, _Progress
 
 HELD_COLORS_SIDE = 48  # px: an icon this small keeps the trace's colours while the polish moves its points. Most of
@@ -131,7 +131,7 @@ class Refinement:
 
     def targets(self, index: list[int]) -> list:
         """The pictures ``index`` at the fit size, as the loss sees them: ``(h, w, 3)`` float64 arrays."""
-        return [self.fitter.target[0][i].detach().permute(1, 2, 0).double().cpu().numpy() for i in index]
+        return [picture_array(self.fitter.target[0][i]) for i in index]
 
     def grow(self, vecs: list[VectorImage], index: list[int]) -> tuple[list[VectorImage], list[int]]:
         """Paths of the pictures' own pieces added where the fitted paths miss them (``grow.grown``), and how many."""

@@ -56,7 +56,10 @@ def _untangled(sh: VectorShape) -> tuple[list[np.ndarray], list[np.ndarray]]:
     kept, outlined = [], []
     for cs, crossed in zip(members, crosses_each(members)):
         out = _outline(VectorShape(cs, sh.color, sh.fill_rule)) if crossed else None
-        (kept.extend(cs) if out is None else outlined.extend(out))
+        if out is None:
+            kept.extend(cs)
+        else:
+            outlined.extend(out)
     return kept, outlined
 
 

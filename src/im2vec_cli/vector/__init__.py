@@ -18,6 +18,7 @@ _WHERE = {
     "from_svg": "read",
     "from_tensors": "tensors",
     "parse_d": "read",
+    "picture_array": "tensors",
     "rasterize_svg": "cairo",
     "render_vector": "tensors",
     "resolve_overlaps": "overlaps",

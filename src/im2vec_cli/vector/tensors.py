@@ -10,6 +10,7 @@ import bisect
 import math
 from collections.abc import Sequence
 
+import numpy as np
 import torch
 
 from ..errors import InputError
@@ -62,6 +63,11 @@ def from_tensors(
         if cs:
             shapes.append(VectorShape(cs, tuple(float(c) for c in colors[gi].tolist()), fill_rule))
     return VectorImage(float(w), float(h), shapes)
+
+
+def picture_array(image: torch.Tensor) -> np.ndarray:
+    """A picture ``(3, H, W)`` tensor as the trace reads it: ``(H, W, 3)`` float64 NumPy on the CPU."""
+    return image.detach().permute(1, 2, 0).double().cpu().numpy()
 
 
 def to_tensors(image: VectorImage, segments: int | None = None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
