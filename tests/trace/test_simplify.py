@@ -106,3 +106,51 @@ def test_contours_simplified_together_come_out_as_each_alone():
     assert [len(c) for c in together] != [len(c) for c in contours]  # merges were made
     for c, t in zip(contours, together):
         assert np.array_equal(t, simplify_contour(c, 0.1))
+
+
+def _scan_simplify(points: np.ndarray, tol: float, min_segments: int = 2) -> np.ndarray:
+    """The reference: every round, every pair of neighbours scanned in order, the first of the
+    cheapest merged (the O(S^2) way ``simplify_contours`` did it before its heap)."""
+    from im2vec_cli.raster.curves import cubic_at, segments_of
+    from im2vec_cli.trace.simplify import SAMPLES, fit_merge
+
+    t = np.linspace(0, 1, SAMPLES, endpoint=False)
+    segs = [(c, cubic_at(c, t)) for c in segments_of(np.asarray(points, dtype=np.float64))]
+    while len(segs) > min_segments:
+        fits = [fit_merge(a, b, np.concatenate([sa, sb, b[3:4]])) for (a, sa), (b, sb) in zip(segs, segs[1:] + segs[:1])]
+        i = min(range(len(fits)), key=lambda k: (fits[k][1] if fits[k][1] == fits[k][1] else np.inf, k))
+        if not fits[i][1] <= tol:
+            break
+        j = (i + 1) % len(segs)
+        segs[i] = (fits[i][0], np.concatenate([segs[i][1], segs[j][1]]))
+        del segs[j]
+    return np.concatenate([c[:3] for c, _ in segs])
+
+
+def test_the_heap_makes_the_merges_a_scan_in_order_makes():
+    """``simplify_contours`` keeps its merges in a heap per contour; it comes out bit for bit as the
+    scan of every pair every round (``_scan_simplify``) on contours full of ties (centred on the
+    origin and symmetric through it or under a quarter turn, so that merges cost exactly the same:
+    IEEE rounding is symmetric; the scan takes the first), a polygon of collinear thirds and a noisy ring, at two
+    tolerances."""
+    from im2vec_cli.trace.simplify import simplify_contours
+
+    rng = np.random.default_rng(11)
+    a = np.linspace(0, 2 * np.pi, 90, endpoint=False)
+    stairs = np.round(np.stack([20 * np.cos(a), 14 * np.sin(a)], 1) * 2) / 2 + 30
+    stairs = stairs[np.any(np.diff(stairs, axis=0, append=stairs[:1]) != 0, axis=1)]  # no repeated anchors
+    half = np.concatenate([rng.normal(0, 0.2, (20, 2)) + np.stack([15 * np.cos(a[:45:2]), 9 * np.sin(a[:45:2])], 1)[:20]])
+    twin = np.concatenate([half, -half])  # symmetric through the origin: ties
+    quarter = np.stack([10 * np.cos(a[:22:4]), 10 * np.sin(a[:22:4])], 1) + rng.normal(0, 0.3, (6, 2))
+    turns = [quarter]
+    for _ in range(3):  # a quarter turn, (x, y) -> (-y, x), is exact: merges that overlap tie
+        turns.append(np.stack([-turns[-1][:, 1], turns[-1][:, 0]], 1))
+    square = np.array([(10.0, 0.0), (0.0, 10.0), (-10.0, 0.0), (0.0, -10.0)])  # 4 merges, all tied
+    side = [np.array(p, float) for p in ((8, 8), (20, 8), (32, 8), (44, 8), (44, 20), (44, 44), (20, 44), (8, 44))]
+    rings = [twin, np.concatenate(turns), square, stairs, np.array(side), 30 + np.stack([12 * np.cos(a[::3]), 12 * np.sin(a[::3])], 1) + rng.normal(0, 0.3, (30, 2))]
+    contours = [np.concatenate([np.stack([p, *line_controls(p, q)]) for p, q in zip(r, np.roll(r, -1, 0))]) for r in rings]
+    for tol in (0.1, 0.5):
+        got = simplify_contours(contours, tol)
+        assert [len(g) for g in got] != [len(c) for c in contours]  # merges were made
+        for c, g in zip(contours, got):
+            assert np.array_equal(g, _scan_simplify(c, tol))

@@ -12,6 +12,7 @@ none fits.
 from __future__ import annotations
 
 import dataclasses
+import heapq
 
 import numpy as np
 
@@ -94,41 +95,77 @@ def simplify_contour(points: np.ndarray, tol: float, min_segments: int = 2) -> n
 def simplify_contours(contours: list[np.ndarray], tol: float, min_segments: int = 2) -> list[np.ndarray]:
     """``simplify_contour`` of each contour, all of them in step: every round, each contour's
     merges not yet fitted are fitted together (``fit_merges``), then each contour makes its
-    cheapest merge (or stops, none within ``tol``); each comes out as it does alone."""
+    cheapest merge (or stops, none within ``tol``); each comes out as it does alone.
+
+    A contour is a ring of segments linked both ways with a heap of its fitted merges (stale
+    ones skipped when they come up), so a round costs a contour the two merges its last one
+    made, not a pass over its segments: O(S log S) in all, not O(S^2) (a 1-bit dither's
+    contours run to tens of thousands of segments). Ties go to the merge first along the
+    contour, as a scan in order would take them: a merge keeps its first segment's place,
+    so the ring in order of first places is always the contour from its first anchor."""
     t = np.linspace(0, 1, SAMPLES, endpoint=False)
-    # per contour: [(uid, control points (4, 2), samples of the original outline it stands for (M, 2), end excluded)]
-    every = [[(i, c, _bezier(c, t)) for i, c in enumerate(_segments(np.asarray(p, dtype=np.float64)))]
-             for p in contours]
-    uid = [len(segs) for segs in every]
-    costs: list[dict[tuple[int, int], tuple[np.ndarray, float]]] = [{} for _ in every]  # merges of neighbours by uid
-    active = [k for k, segs in enumerate(every) if len(segs) > min_segments]
-    while active:
-        todo = []  # (contour, key, first, second, the original outline from first's start to second's end)
-        for k in active:
-            segs = every[k]
-            for (ua, a, sa), (ub, b, sb) in zip(segs, segs[1:] + segs[:1]):
-                if (ua, ub) not in costs[k]:
-                    todo.append((k, (ua, ub), a, b, np.concatenate([sa, sb, b[3:4]])))
-        for (k, key, *_), got in zip(todo, fit_merges([w[2:] for w in todo])):
-            costs[k][key] = got
-        still = []
-        for k in active:
-            segs, n = every[k], len(every[k])
-            best_i, best = -1, (None, np.inf)
-            for i in range(n):
-                cost = costs[k][(segs[i][0], segs[(i + 1) % n][0])]
-                if cost[1] < best[1]:
-                    best_i, best = i, cost
-            if best[1] > tol:
-                continue
-            j = (best_i + 1) % n
-            segs[best_i] = (uid[k], best[0], np.concatenate([segs[best_i][2], segs[j][2]]))
-            uid[k] += 1
-            del segs[j]
-            if len(segs) > min_segments:
-                still.append(k)
-        active = still
-    return [np.concatenate([c[:3] for _, c, _ in segs]) for segs in every]
+    rings = [_Ring(_segments(np.asarray(p, dtype=np.float64)), t) for p in contours]
+    todo = [(k, pair) for k, ring in enumerate(rings) if ring.size > min_segments for pair in ring.pairs()]
+    while todo:
+        got = fit_merges([rings[k].merge_input(*pair) for k, pair in todo])
+        for (k, pair), (ctrl, err) in zip(todo, got):
+            rings[k].offer(pair, ctrl, err)
+        todo = [(k, pair) for k in sorted({k for k, _ in todo}) for pair in rings[k].merge_best(tol, min_segments)]
+    return [ring.points() for ring in rings]
+
+
+class _Ring:
+    """One contour being simplified: its segments by id (control points ``(4, 2)``, samples of the
+    original outline each stands for ``(M, 2)``, end excluded, and the place of its first original
+    segment), linked both ways, and a heap of fitted merges ``(error, place, first id, second id, controls)``."""
+
+    def __init__(self, segs: np.ndarray, t: np.ndarray):
+        n = len(segs)
+        self.ctrl = dict(enumerate(segs))
+        self.samples = {i: _bezier(c, t) for i, c in enumerate(segs)}
+        self.place = {i: i for i in range(n)}
+        self.next = {i: (i + 1) % n for i in range(n)}
+        self.prev = {i: (i - 1) % n for i in range(n)}
+        self.heap, self.size, self._uid = [], n, n
+
+    def pairs(self) -> list[tuple[int, int]]:
+        """Every pair of neighbours, in order."""
+        return [(i, self.next[i]) for i in sorted(self.ctrl, key=self.place.get)]
+
+    def merge_input(self, a: int, b: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``fit_merges``' input for the neighbours ``a, b``: both segments and the original outline they stand for."""
+        return self.ctrl[a], self.ctrl[b], np.concatenate([self.samples[a], self.samples[b], self.ctrl[b][3:4]])
+
+    def offer(self, pair: tuple[int, int], ctrl: np.ndarray, err: float) -> None:
+        err = err if err == err else np.inf  # NaN never merges (a scan's ``<`` never takes it)
+        heapq.heappush(self.heap, (err, self.place[pair[0]], *pair, ctrl))
+
+    def merge_best(self, tol: float, min_segments: int) -> list[tuple[int, int]]:
+        """Make the cheapest merge within ``tol`` px, if any; the new pairs it makes, to fit (none once
+        ``min_segments`` are left, or when nothing merged)."""
+        while self.heap:
+            err, _, a, b, ctrl = self.heap[0]
+            if a in self.ctrl and self.next[a] == b:
+                break
+            heapq.heappop(self.heap)
+        else:
+            return []
+        if err > tol:
+            return []
+        heapq.heappop(self.heap)
+        u, self._uid = self._uid, self._uid + 1
+        before, after = self.prev[a], self.next[b]
+        self.ctrl[u], self.samples[u], self.place[u] = ctrl, np.concatenate([self.samples[a], self.samples[b]]), self.place[a]
+        for d in (self.ctrl, self.samples, self.place, self.next, self.prev):
+            del d[a], d[b]
+        self.size -= 1
+        before, after = (u, u) if before == b else (before, after)  # two segments became one
+        self.next[before], self.prev[u], self.next[u], self.prev[after] = u, before, after, u
+        return [(before, u), (u, after)] if self.size > min_segments else []
+
+    def points(self) -> np.ndarray:
+        """``(3S', 2)``: the contour from its first anchor."""
+        return np.concatenate([self.ctrl[i][:3] for i in sorted(self.ctrl, key=self.place.get)])
 
 
 def simplify(image: VectorImage, tol: float) -> VectorImage:
