@@ -6,7 +6,7 @@ pipeline: segment -> fit -> composite -> optimise -> write), over ``trace``'s st
 2. ``choose``: of two starts, the one nearer the picture, both fitted at ``trace.CHOICE_TOLERANCE``;
 3. fit: the chosen start's rings fitted with cubics within ``tolerance`` px (``trace.Start.outline``);
 4. ``polish``: points and colours through the renderer (``Refinement.polish_outline``), smooth
-   joins kept smooth; not an exact outline (a hard-edged picture's pixel edges) nor
+   joins kept smooth and a two-tone picture's lines straight; not an exact outline (a hard-edged picture's pixel edges) nor
    one of more than ``polish_segments`` segments;
 5. ``split_and_polish``: segments along which the render is still wrong halved
    (``trace.split_where_wrong``) and polished again, kept where nearer;
@@ -72,9 +72,10 @@ def clean_outlines(pictures: list[np.ndarray], run: Refinement | None, s: Plan =
     vecs, flags = [v for v, _, _ in made], [f for _, f, _ in made]
     todo = [i for i, (v, _, exact) in enumerate(made)  # an empty one has nothing to draw, an exact one nothing
             if v.shapes and not exact and v.num_segments <= s.polish_segments and polish_these[i]]  # to fix
-    vecs, loss = polish(run, vecs, flags, todo) if todo else (vecs, {})
+    straight = [r.tone is not None for r in readings]  # a two-tone picture's lines stay lines (``projections``)
+    vecs, loss = polish(run, vecs, flags, todo, straight) if todo else (vecs, {})
     if s.split_error > 0 and loss:
-        vecs, loss = split_and_polish(run, pictures, vecs, flags, loss, s)
+        vecs, loss = split_and_polish(run, pictures, vecs, flags, loss, s, straight)
     if loss:
         vecs, loss = colors_solved(run, pictures, vecs, list(loss))
     tell(Stage("polished"))
@@ -149,10 +150,11 @@ def choose(starts: list[list[Start]], run: Refinement) -> list[Start]:
     return chosen
 
 
-def polish(run: Refinement, vecs: list[VectorImage], flags: list[Corners], todo: list[int]
+def polish(run: Refinement, vecs: list[VectorImage], flags: list[Corners], todo: list[int], straight: list[bool]
            ) -> tuple[list[VectorImage], dict[int, float]]:
-    """The pictures ``todo`` polished (the others as they are) and the loss of each polished one."""
-    got = run.polish_outline([vecs[i] for i in todo], [flags[i] for i in todo], todo)
+    """The pictures ``todo`` polished (the others as they are; ``straight``: per picture, whether its lines
+    stay lines) and the loss of each polished one."""
+    got = run.polish_outline([vecs[i] for i in todo], [flags[i] for i in todo], todo, [straight[i] for i in todo])
     out = list(vecs)
     for i, v in zip(todo, got):
         out[i] = v
@@ -160,7 +162,7 @@ def polish(run: Refinement, vecs: list[VectorImage], flags: list[Corners], todo:
 
 
 def split_and_polish(run: Refinement, pictures: list[np.ndarray], vecs: list[VectorImage], flags: list[Corners],
-                     loss: dict[int, float], s: Plan) -> tuple[list[VectorImage], dict[int, float]]:
+                     loss: dict[int, float], s: Plan, straight: list[bool]) -> tuple[list[VectorImage], dict[int, float]]:
     """Each polished picture's segments that are still wrong halved and polished again; the
     new result kept where its loss is lower."""
     split = {}
@@ -171,7 +173,8 @@ def split_and_polish(run: Refinement, pictures: list[np.ndarray], vecs: list[Vec
     again = list(split)
     out, loss = list(vecs), dict(loss)
     if again:
-        got = run.polish_outline([split[i][0] for i in again], [split[i][1] for i in again], again)
+        got = run.polish_outline([split[i][0] for i in again], [split[i][1] for i in again], again,
+                                 [straight[i] for i in again])
         for i, v, sc in zip(again, got, run.loss(got, again)):
             if sc < loss[i]:
                 out[i], loss[i] = v, sc

@@ -1,6 +1,6 @@
 """The optimiser core of refinement: vector images packed as tensors (``_Paths``), early
 stopping (``_Progress``), and batched Adam through the renderer (``_Fitter``), with the
-smooth-join projection and the geometry guards."""
+geometry guards (and the projections after each step: ``projections.py``)."""
 
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ from ..options import Plan
 from ..raster import gaussian_pyramid, polygon_area, pyramid_l2, render_pyramid, segment_controls
 from ..trace import Corners
 from ..vector import VectorImage, VectorShape, fill_vector
+from .projections import align, joins_and_lines, straighten
 
 
 def _geometry_penalty(points: torch.Tensor, real: torch.Tensor, size: tuple[int, int], s: Plan) -> torch.Tensor:
@@ -182,28 +183,29 @@ class _Fitter:
         return out
 
     def fit_points(self, vecs: list[VectorImage], steps: int, tau_start: float, learn_colors: bool, stage: str,
-                   on_step, smooth: list[Corners] | None = None, index: list[int] | None = None
-                   ) -> tuple[list[VectorImage], list[int]]:
+                   on_step, smooth: list[Corners] | None = None, index: list[int] | None = None,
+                   straight: list[bool] | None = None) -> tuple[list[VectorImage], list[int]]:
         """Adam on the control points (and colours) of each of ``vecs``, tau annealed to ``tau_end``.
 
         One batched render per step (per fill rule), one loss per image: an image's gradient
         and Adam state are its own, so the batch gives each image what it alone would get
         (up to float rounding). Each image stops when its loss converges and is rendered no
         more. ``smooth``: per image the corner flags of ``trace.fit_rings``; after every
-        step the two handles of each smooth join are made collinear again (projected gradient
-        descent). Returns the best result of each image at the final tau and its steps taken."""
+        step the two handles of each smooth join are made collinear again and, in the images
+        ``straight`` says, each line straight (projected gradient descent: ``projections.py``). Returns the best result of each image at the final tau and its steps taken."""
         index = list(range(len(vecs))) if index is None else index
         out, taken = list(vecs), [0] * len(vecs)
         if steps <= 0:
             return out, taken
         for todo in _by_rule(vecs):
             got, n = self._fit_batch([vecs[i] for i in todo], steps, tau_start, learn_colors, stage, on_step,
-                                     None if smooth is None else [smooth[i] for i in todo], [index[i] for i in todo])
+                                     None if smooth is None else [smooth[i] for i in todo], [index[i] for i in todo],
+                                     [bool(straight and straight[i]) for i in todo])
             for i, v, k in zip(todo, got, n):
                 out[i], taken[i] = v, k
         return out, taken
 
-    def _fit_batch(self, vecs, steps, tau_start, learn_colors, stage, on_step, smooth, index):
+    def _fit_batch(self, vecs, steps, tau_start, learn_colors, stage, on_step, smooth, index, straight):
         s = self.s
         t = _Paths.of(vecs, self.target[0].device)
         dev = t.points.device
@@ -213,7 +215,7 @@ class _Fitter:
         if learn_colors:
             groups.append({"params": [cols], "lr": s.color_lr})
         opt = Adam(groups)
-        joins = None if smooth is None else _smooth_joins(vecs, smooth, dev)
+        joins, lines = (None, None) if smooth is None else joins_and_lines(vecs, smooth, straight, dev)
         hold = None if smooth is None else _hidden(vecs, t.points.shape[:3], dev)  # (B, P, 3K): points held
         hold = hold if hold is not None and bool(hold.any()) else None  # (at their start: t.points)
         anneal = int(0.6 * steps) if tau_start != s.tau_end else 0
@@ -232,7 +234,8 @@ class _Fitter:
             loss.sum().backward()
             opt.step()
             if joins is not None:
-                _align(pts, joins, self.size)
+                straighten(pts, lines, t.counts)
+                align(pts, joins, self.size)
             if hold is not None:
                 with torch.no_grad():
                     pts.copy_(torch.where(hold[..., None], t.points, pts))
@@ -272,20 +275,6 @@ class _Fitter:
                 removed.add(gc)
                 current = min(current, loss)
         return _without(vec, removed)
-
-
-def _smooth_joins(vecs: list[VectorImage], flags: list[Corners], device) -> torch.Tensor:
-    """``(5, J)`` indices (image, path, anchor, handle before, handle after) of the smooth
-    joins of every contour of ``vecs``, in ``_Paths`` order."""
-    rows = []
-    for b, (vec, fl_img) in enumerate(zip(vecs, flags)):
-        p = 0
-        for sh, fl in zip(vec.shapes, fl_img):
-            for c, f in zip(sh.contours, fl):
-                n = len(c)
-                rows += [(b, p, 3 * k, (3 * k - 1) % n, 3 * k + 1) for k in np.nonzero(~np.asarray(f, dtype=bool))[0]]
-                p += 1
-    return torch.tensor(rows, dtype=torch.long, device=device).reshape(-1, 5).T
 
 
 HIDDEN_DEPTH = 0.5  # input px: control points this deep under the shapes above their own are held in the polish
@@ -340,23 +329,6 @@ def _deep(above: np.ndarray, pts: np.ndarray) -> np.ndarray:
     for dx, dy in _DISK:  # the disk's pixels off the picture are not asked (as the transform does)
         deep &= above[np.clip(iy + dy, 0, h - 1), np.clip(ix + dx, 0, w - 1)]
     return deep
-
-
-def _align(pts: torch.Tensor, joins: torch.Tensor, size: tuple[int, int]) -> None:
-    """In place on ``pts (B, P, 3K, 2)`` (input-normalised): each smooth join's handles made
-    collinear through its anchor (in pixels), their lengths kept."""
-    if not joins.shape[1]:
-        return
-    with torch.no_grad():
-        scale = torch.tensor([size[1], size[0]], dtype=pts.dtype, device=pts.device)
-        i, p, a, b, c = joins
-        anchor, before, after = pts[i, p, a] * scale, pts[i, p, b] * scale, pts[i, p, c] * scale
-        la, lb = (after - anchor).norm(dim=-1, keepdim=True), (anchor - before).norm(dim=-1, keepdim=True)
-        t = (after - anchor) / la.clamp_min(1e-9) + (anchor - before) / lb.clamp_min(1e-9)
-        t = t / t.norm(dim=-1, keepdim=True).clamp_min(1e-9)
-        ok = ((la > 1e-6) & (lb > 1e-6)).expand_as(t)
-        pts[i, p, c] = torch.where(ok, anchor + la * t, after) / scale
-        pts[i, p, b] = torch.where(ok, anchor - lb * t, before) / scale
 
 
 def _anchor_area(c) -> float:

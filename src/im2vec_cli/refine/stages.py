@@ -121,13 +121,15 @@ class Refinement:
         return self.fine.fit_points([simplify(v, self.s.simplify_tol) for v in vecs], self.s.polish_steps,
                                     self.s.tau_end, False, "polish", self.on_step, index=index)
 
-    def polish_outline(self, vecs: list[VectorImage], flags: list[Corners], index: list[int]) -> list[VectorImage]:
-        """Clean outlines: points and colours polished for ``outline_steps``, smooth joins kept smooth (the colours
-        are solved again after: ``clean.solved_colors``); a picture of at most ``HELD_COLORS_SIDE`` px keeps the
-        trace's colours while its points move."""
+    def polish_outline(self, vecs: list[VectorImage], flags: list[Corners], index: list[int],
+                       straight: list[bool] | None = None) -> list[VectorImage]:
+        """Clean outlines: points and colours polished for ``outline_steps``, smooth joins kept smooth and, where
+        ``straight`` says (a two-tone picture's), lines straight (the colours are solved again after:
+        ``clean.solved_colors``); a picture of at most ``HELD_COLORS_SIDE`` px keeps the trace's colours while its
+        points move."""
         learn_colors = max(self.images[0].shape[1:]) > HELD_COLORS_SIDE
         return self.fine.fit_points(vecs, self.s.outline_steps, self.s.outline_tau, learn_colors, "outline",
-                                    self.on_step, smooth=flags, index=index)[0]
+                                    self.on_step, smooth=flags, index=index, straight=straight)[0]
 
     def targets(self, index: list[int]) -> list:
         """The pictures ``index`` at the fit size, as the loss sees them: ``(h, w, 3)`` float64 arrays."""
