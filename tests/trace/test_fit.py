@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from im2vec_cli.trace.fit import corners, fit_ring, fit_rings, resample, split_segments
+from im2vec_cli.raster.curves import flatten_ring, ring_area
+from im2vec_cli.trace.fit import KEEP_AREA, _fitted, corners, fit_ring, fit_rings, resample
+from im2vec_cli.trace.simplify import split_segments
 from im2vec_cli.vector import VectorImage, VectorShape, rasterize_svg
 
 
@@ -34,6 +36,21 @@ def test_fit_ring_stays_within_tolerance_and_looser_means_fewer_segments():
             dist = np.sqrt(((dense[:, None] - curve[None]) ** 2).sum(-1)).min(1)
             assert dist.max() <= tol + 0.05, (tol, dist.max())
         assert all(a >= b for a, b in zip(counts, counts[1:])), counts
+
+
+def test_a_thin_strip_keeps_its_area_at_every_tolerance():
+    """A 1 px strip (a desktop icon's dark rim as ``regions.trace`` gives it: cut corners, 25 px long) fitted
+    within 0.5 px fitted as one line there and back, enclosing nothing, and the rim vanished from the icon.
+    Its fit keeps its area within ``KEEP_AREA`` at any tolerance; a large ring is fitted as before."""
+    top, bottom = [[x + 0.5, 1.0] for x in range(4, 28)], [[x + 0.5, 2.0] for x in range(27, 3, -1)]
+    strip = np.array([[3.9, 1.5], *top, [29.1, 1.5], *bottom], float)
+    area = lambda c: ring_area(flatten_ring(c, 16))  # noqa: E731
+    for tol in (0.25, 0.5, 1.0):
+        c, _ = fit_ring(strip, tol)
+        assert abs(area(c) - ring_area(strip)) <= KEEP_AREA * ring_area(strip), (tol, area(c))
+    t = np.linspace(0, 2 * np.pi, 400, endpoint=False)
+    disc = np.stack([32 + 20 * np.cos(t), 32 + 20 * np.sin(t)], 1)
+    assert np.array_equal(fit_ring(disc, 0.5)[0], _fitted([disc], 0.5)[0][0])
 
 
 def test_corners_are_found_and_round_ends_are_not():

@@ -8,7 +8,7 @@ import pytest
 
 from im2vec_cli.errors import TraceError
 from im2vec_cli.trace.palette import _absorb_specks, hard_palette, quantize
-from im2vec_cli.trace.regions import two_tone
+from im2vec_cli.trace.regions import trace, two_tone
 from tests.trace.outlines import picture
 
 
@@ -175,3 +175,32 @@ def test_a_white_panel_on_a_grey_canvas_is_drawn_white():
     out = rasterize_svg(vec.to_svg(), 160, 96)
     assert np.abs(out[2:10, 5:155] - 1.0).max() < 0.02 and np.abs(out[85:94, 5:155] - 0.9).max() < 0.02
     assert np.abs(out[64:76, 24:56] - (0.15, 0.35, 0.85)).max() < 0.02
+
+
+def _logo_with_a_faint_line(peak: float) -> np.ndarray:
+    """A 96 px picture, white, with a black disc (the ink) and apart from it a thin grey line 30 px long whose
+    darkest pixels are ``peak`` of the ink (a logo's credit line): ``(H, W, 3)``."""
+    y, x = np.mgrid[0:96, 0:96] + 0.5
+    disc = np.clip(20.5 - np.hypot(x - 40, y - 40), 0, 1)
+    line = peak * np.clip(1 - np.abs(y - 80.5), 0, 1) * ((x > 20) & (x < 50))  # 1 px thin, its centre on a row
+    return np.repeat(1 - np.maximum(disc, line)[..., None], 3, -1)
+
+
+def test_a_two_tone_logos_faint_marks_are_drawn_in_their_own_tone(monkeypatch):
+    """Marks lighter than half the ink, which the ink's 0.5 level drops, are regions of their own tone drawn out to
+    ``FAINT_LEVEL`` of their peak; asked for two tones (``--colors 1``), or where there are more than ``FAINT_MOST``
+    of them (grain), only the ink."""
+    from im2vec_cli.trace import regions as module
+    from im2vec_cli.trace.outline import traced
+    from im2vec_cli.vector import rasterize_svg
+
+    pic = _logo_with_a_faint_line(0.4)
+    greys = [r for r in trace(pic, kind="logo") if 0.5 < r.color[0] < 0.7]
+    assert len(greys) == 1 and abs(greys[0].color[0] - 0.6) < 0.02
+    vec, _, _ = traced(pic, 0.5, kind="logo")
+    drawn = 1 - rasterize_svg(vec.to_svg(), 96, 96).mean(-1)
+    assert drawn[80, 22:48].min() > 0.3 and drawn[78, 22:48].max() < 0.05  # the line, no wider than 1-2 px
+    assert not [r for r in trace(pic, colors=1, kind="logo") if 0.05 < r.color[0] < 0.95]
+    assert not [r for r in trace(_logo_with_a_faint_line(0.9), kind="logo") if 0.05 < r.color[0] < 0.95]
+    monkeypatch.setattr(module, "FAINT_MOST", 0)
+    assert not [r for r in trace(pic, kind="logo") if 0.05 < r.color[0] < 0.95]

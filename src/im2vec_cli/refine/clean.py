@@ -6,8 +6,8 @@ pipeline: segment -> fit -> composite -> optimise -> write), over ``trace``'s st
 2. ``choose``: of two starts, the one nearer the picture, both fitted at ``trace.CHOICE_TOLERANCE``;
 3. fit: the chosen start's rings fitted with cubics within ``tolerance`` px (``trace.Start.outline``);
 4. ``polish``: points and colours through the renderer (``Refinement.polish_outline``), smooth
-   joins kept smooth and a two-tone picture's lines straight; not an exact outline (a hard-edged picture's pixel edges) nor
-   one of more than ``polish_segments`` segments;
+   joins kept smooth and a two-tone picture's lines straight (up to ``HOLD_TOLERANCE``); not an
+   exact outline (a hard-edged picture's pixel edges) nor one of more than ``polish_segments`` segments;
 5. ``split_and_polish``: segments along which the render is still wrong halved
    (``trace.split_where_wrong``) and polished again, kept where nearer;
 6. ``colors_solved``: each polished picture's colours solved against it (``solved_colors``);
@@ -46,6 +46,10 @@ from ..vector import VectorImage
 if TYPE_CHECKING:
     from .stages import Refinement
 
+HOLD_TOLERANCE = 0.5  # px: a two-tone picture's lines are held straight in the polish where fitted this close.
+# A looser line may stand off a junction the ink curves into: held straight at --tolerance 1, 2 of 620 glyphs
+# cracked there (bench/outlines.py), none of them held at 0.5 (the default) or not held at 1
+
 
 def clean_outlines(pictures: list[np.ndarray], run: Refinement | None, s: Plan = Plan(), *,
                    readings: list[Reading] | None = None, on_stage: Callable[[Stage], None] | None = None
@@ -72,7 +76,7 @@ def clean_outlines(pictures: list[np.ndarray], run: Refinement | None, s: Plan =
     vecs, flags = [v for v, _, _ in made], [f for _, f, _ in made]
     todo = [i for i, (v, _, exact) in enumerate(made)  # an empty one has nothing to draw, an exact one nothing
             if v.shapes and not exact and v.num_segments <= s.polish_segments and polish_these[i]]  # to fix
-    straight = [r.tone is not None for r in readings]  # a two-tone picture's lines stay lines (``projections``)
+    straight = [r.tone is not None and s.tolerance <= HOLD_TOLERANCE for r in readings]  # ``projections``
     vecs, loss = polish(run, vecs, flags, todo, straight) if todo else (vecs, {})
     if s.split_error > 0 and loss:
         vecs, loss = split_and_polish(run, pictures, vecs, flags, loss, s, straight)

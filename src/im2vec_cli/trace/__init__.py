@@ -10,7 +10,8 @@ one pixel a block). Bottom up:
   set; multi-colour: stacked regions; hard-edged: along the pixel edges), bounded in number;
 - ``pixels``: pixel art's exact outlines (the union of its pixel squares), bounded by corner touches;
 - ``fit``: rings to closed cubics within a tolerance, corners kept sharp (``Corners`` flags);
-- ``simplify``: fewer segments for the same outline (neighbours merged within a tolerance);
+- ``simplify``: fewer segments for the same outline (neighbours merged within a tolerance), or more
+  (``split_segments``);
 - ``outline``: ``traced`` (the picture's regions fitted), ``redrawn`` (any vector image
   rendered, traced and fitted again: overlaps united, seams closed) and ``cleaned``;
 - ``untangle``: crossings removed with Skia's path ops;
@@ -21,7 +22,7 @@ Frame: the pixel frame of the picture (``vector/image.py``).
 """
 
 from .batch import FLAT_SUMMARY, flat_result, needs_renderer, read_pictures
-from .fit import Corners, fit_ring, fit_rings, split_segments
+from .fit import Corners, fit_ring, fit_rings
 from .outline import cleaned, redrawn, traced
 from .pipeline import (
     CHOICE_TOLERANCE,
@@ -34,7 +35,7 @@ from .pipeline import (
 )
 from .read import KINDS, Reading, read
 from .regions import Region, background_color, level_polygons, trace, two_tone
-from .simplify import simplify, simplify_contour
+from .simplify import simplify, simplify_contour, split_segments
 from .untangle import crosses, untangle
 
 __all__ = [

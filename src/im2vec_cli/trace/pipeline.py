@@ -23,10 +23,11 @@ import numpy as np
 from ..options import Plan
 from ..raster.curves import flatten_ring
 from ..vector import VectorImage, VectorShape, fill_vector
-from .fit import Corners, split_segments
+from .fit import Corners
 from .outline import redrawn, traced
 from .read import Reading
 from .regions import background_color, two_tone
+from .simplify import split_segments
 from .untangle import untangle
 
 CHOICE_TOLERANCE = 0.25  # px: the clean-outline starts are compared fitted this closely

@@ -175,3 +175,26 @@ def simplify(image: VectorImage, tol: float) -> VectorImage:
     done = iter(simplify_contours([c for s in image.shapes for c in s.contours], tol))
     shapes = [dataclasses.replace(s, contours=[next(done) for _ in s.contours]) for s in image.shapes]
     return dataclasses.replace(image, shapes=shapes)
+
+
+def split_segments(contour: np.ndarray, sharp: np.ndarray, which: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Split segments ``which`` (indices) of a closed contour ``(3S, 2)`` in half (de Casteljau:
+    the outline does not move; the new anchors are smooth joins).
+
+    Returns:
+        The new contour and its corner flags, as ``fit_ring`` gives them.
+    """
+    n = len(contour)
+    segs, flags, todo = [], [], set(int(i) for i in which)
+    for s in range(n // 3):
+        ctrl = np.stack([contour[3 * s], contour[3 * s + 1], contour[3 * s + 2], contour[(3 * s + 3) % n]])
+        if s in todo:
+            p01, p12, p23 = (ctrl[0] + ctrl[1]) / 2, (ctrl[1] + ctrl[2]) / 2, (ctrl[2] + ctrl[3]) / 2
+            q0, q1 = (p01 + p12) / 2, (p12 + p23) / 2
+            mid = (q0 + q1) / 2
+            segs += [np.stack([ctrl[0], p01, q0]), np.stack([mid, q1, p23])]
+            flags += [bool(sharp[s]), False]
+        else:
+            segs.append(ctrl[:3])
+            flags.append(bool(sharp[s]))
+    return np.concatenate(segs), np.array(flags)
