@@ -232,3 +232,16 @@ def test_an_anti_aliased_glyph_stays_two_tone(size):
     tone = two_tone(glyph, background_color(glyph))
     assert tone is not None and not tints_agree_better(glyph, background_color(glyph), *tone)
     assert read(glyph).tone is not None and not read(glyph).palette
+
+
+def test_a_drawing_the_logo_reading_polishes_needs_a_wider_margin(monkeypatch):
+    """Where the logo reading polishes (at most ``Plan.max_side`` px a side), its palette's raster draws hard the edges
+    the polish fits: the pieces must agree by ``POLISHED_MARGIN`` more, not ``AGREE_MARGIN`` (a 64 px FaceTime logo
+    whose pieces agreed 0.043 better was read as a photo, MSE 0.0069 against 0.0005 as a logo). Agreements are set."""
+    import im2vec_cli.trace.photo as photo
+
+    agreements = iter([0.90, 0.94] * 2)  # logo's, then the pieces': 0.04 better
+    monkeypatch.setattr(photo, "edge_agreement", lambda picture, drawn: next(agreements))
+    small = drawing(shaded=True)  # 160 px ...
+    assert photo.agrees_better(small, 16)[0]
+    assert not photo.agrees_better(small[::2, ::2], 16)[0]  # ... and 80 px, polished as a logo

@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..options import Plan
+
 STEP_L = 6.0  # CIELAB lightness of one step (of 100): about 15 levels of 255
 STEP_AB = 12.0  # a and b of one step: hue and saturation change less where the eye looks
 MARK_PX = 4  # a piece this small (2x2 px) that stands out of all it touches (``marks``) is kept: text, a dot...
@@ -34,7 +36,11 @@ PHOTO_SIGMA = 0.3  # px: a photo's blur before it is cut into pieces (bench/wild
 # pieces: 15 of 17 at or above both peers at 0.3 px, 14 with none (an apple's skin cut into specks), 13 at 0.5 px)
 AGREE_MARGIN = 0.03  # edge F1 by which a drawing's pieces must agree better with it than its palette's regions
 # (bench/wild.py's tuned drawings: 0.04-0.33 better where the pieces' trace was at or above both peers and the
-# palette's was not; a 100 px star 0.30 better where the palette's trace was already exact)
+# palette's was not; a 100 px star 0.30 better where the palette's trace was already exact)...
+POLISHED_MARGIN = 0.05  # ...and a drawing the logo reading polishes (``options.Plan.max_side`` px a side at most)
+# by this: its palette's raster draws hard the edges the polish fits (an OpenMoji FaceTime logo at 64 px, its pieces
+# 0.043 better, was read as a photo: MSE@1x 0.0069, as a logo 0.0005; a 48 px Adwaita calculator, 0.033: 0.0070
+# and 0.0043, edge F1 0.998 and 0.992)
 TINT_PIXELS, TINT_MARGIN = 64 * 64, 0.7  # a two-tone-looking picture this small is read as colours where
 # its palette's pixel error is under this share of its ink's (``tints_agree_better``)
 AGREE_PIXELS = 1024 * 1024  # a larger drawing is judged on its window of this many pixels with the most edges (a
@@ -164,22 +170,23 @@ def agrees_better(picture: np.ndarray, min_px: int, mark_by: float = 0.0, seed: 
     """Whether the drawing ``picture (H, W, 3)`` (multi-colour, not hard-edged) agrees better with
     itself cut into a photo's ``pieces`` (as ``read.read`` cuts a photo) than quantised to its
     palette (``palette.quantize``, as a logo is): each drawn as a raster of its labels' colours,
-    the pieces' edges agree by at least ``AGREE_MARGIN`` more (``edge_agreement``) and their
-    pixel error is no larger (never where the palette's agree within the margin of 1: the
+    the pieces' edges agree by at least ``AGREE_MARGIN`` (where the logo is polished, ``POLISHED_MARGIN``) more
+    (``edge_agreement``) and their pixel error is no larger (never where the palette's agree within the margin of 1: the
     pieces are not cut). With the agreements worked out, for ``-v``."""
     from .ndops import gaussian
     from .palette import quantize
 
+    margin = POLISHED_MARGIN if max(picture.shape[:2]) <= Plan.max_side else AGREE_MARGIN
     picture = busiest_window(picture)
     palette, labels = quantize(picture, None, seed)
     logo = palette[labels]
     edges = {"logo_edges": edge_agreement(picture, logo)}
-    if edges["logo_edges"] + AGREE_MARGIN > 1:  # no cut can agree by the margin more (a flat logo): not cut
+    if edges["logo_edges"] + margin > 1:  # no cut can agree by the margin more (a flat logo): not cut
         return False, {k: round(v, 3) for k, v in edges.items()}
     colours, ids = pieces(gaussian(picture, PHOTO_SIGMA), min_px, mark_by)
     photo = colours[ids]
     edges["photo_edges"] = edge_agreement(picture, photo)
-    better = edges["photo_edges"] >= edges["logo_edges"] + AGREE_MARGIN and (
+    better = edges["photo_edges"] >= edges["logo_edges"] + margin and (
         ((photo - picture) ** 2).mean() <= ((logo - picture) ** 2).mean())
     return bool(better), {k: round(v, 3) for k, v in edges.items()}
 
