@@ -8,7 +8,15 @@ import pytest
 import torch
 
 from im2vec_cli.raster.bezier import flatten_closed
-from im2vec_cli.raster.curves import cubic_at, flatten_ring, line_controls, ring_area, segments_of
+from im2vec_cli.raster.curves import (
+    contour_areas,
+    cubic_at,
+    flatten_ring,
+    line_controls,
+    ring_area,
+    ring_areas,
+    segments_of,
+)
 
 
 def test_cubic_at_is_the_bernstein_polynomial_on_arrays_and_tensors():
@@ -58,3 +66,14 @@ def test_cubics_at_is_cubic_at_row_by_row_to_the_bit():
     got = cubics_at(ctrl, t)
     assert got.shape == (9, 13, 2)
     assert all(np.array_equal(got[k], cubic_at(ctrl[k], t[k])) for k in range(9))
+
+
+def test_areas_of_rings_of_different_lengths_are_each_ones_area():
+    """``ring_areas`` and ``contour_areas`` (one pass over rings laid end to end) give, ring by ring, what
+    ``ring_area`` and ``ring_area(flatten_ring(...))`` give one at a time."""
+    rng = np.random.default_rng(0)
+    rings = [rng.normal(size=(n, 2)) * 10 for n in (3, 1, 7, 40, 4)]
+    contours = [rng.normal(size=(3 * s, 2)) * 10 for s in (1, 2, 5, 13)]
+    assert np.allclose(ring_areas(rings), [ring_area(r) for r in rings], rtol=0, atol=1e-9)
+    assert np.allclose(contour_areas(contours, 8), [ring_area(flatten_ring(c, 8)) for c in contours], rtol=0, atol=1e-9)
+    assert ring_areas([]).shape == contour_areas([], 8).shape == (0,)

@@ -85,3 +85,33 @@ def ring_area(verts: np.ndarray) -> np.ndarray:
     x, y = verts[..., 0], verts[..., 1]
     x1, y1 = (np.concatenate([a[..., 1:], a[..., :1]], -1) for a in (x, y))  # np.roll(a, -1, -1), without its overhead
     return 0.5 * (x * y1 - x1 * y).sum(-1)
+
+
+def _next_places(sizes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For items laid end to end in runs of ``sizes`` (each at least 1): each run's first place and, per
+    item, the place of the next one along its run (closed: the last's next is the first)."""
+    first = np.cumsum(sizes) - sizes
+    nxt = np.arange(1, int(sizes.sum()) + 1)
+    nxt[first + sizes - 1] = first
+    return first, nxt
+
+
+def ring_areas(rings: list[np.ndarray]) -> np.ndarray:
+    """``ring_area`` of closed polylines of different lengths ``[(V_i, 2)]`` (each V_i >= 1) at once: ``(n,)``."""
+    if not rings:
+        return np.zeros(0)
+    pts = np.concatenate(rings)
+    first, nxt = _next_places(np.array([len(r) for r in rings]))
+    return 0.5 * np.add.reduceat(pts[:, 0] * pts[nxt, 1] - pts[nxt, 0] * pts[:, 1], first)
+
+
+def contour_areas(contours: list[np.ndarray], samples: int) -> np.ndarray:
+    """Signed areas of closed cubic paths of different lengths ``[(3S_i, 2)]``, each flattened ``samples``
+    times a segment (``flatten_ring``), at once: ``(n,)``."""
+    if not contours:
+        return np.zeros(0)
+    seg = np.concatenate([c.reshape(-1, 3, 2) for c in contours])  # (S, 3, 2): anchor, control, control
+    count = np.array([len(c) // 3 for c in contours])
+    _, nxt = _next_places(count)
+    verts = flatten_cubics(np.concatenate([seg, seg[nxt, :1]], 1), samples)  # (S * samples, 2)
+    return ring_areas(np.split(verts, np.cumsum(samples * count)[:-1]))

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..raster.curves import cubics_at, flatten_ring, line_controls, ring_area
+from ..raster.curves import contour_areas, cubics_at, line_controls, ring_areas
 from .ndops import run_places
 
 Corners = list[list[np.ndarray]]  # per shape, per contour: (S,) bool, true where anchor i is sharp
@@ -357,21 +357,17 @@ def fit_rings(rings: list[np.ndarray], tol: float) -> list[tuple[np.ndarray, np.
         Per ring, ``(3S, 2)`` control points (same orientation as the ring) and ``(S,)`` bool,
         true where anchor ``i`` is a corner (a join whose tangents may differ).
     """
-    out = _fitted(rings, tol)
+    out, want = _fitted(rings, tol), ring_areas(rings)
+    todo = np.arange(len(rings))
     for _ in range(3):
-        wrong = [i for i, (c, _) in enumerate(out) if _area_off(c, rings[i])]
-        if not wrong:
+        got = contour_areas([out[i][0] for i in todo], 8)
+        todo = todo[np.abs(got - want[todo]) > KEEP_AREA * np.abs(want[todo])]
+        if not len(todo):
             break
         tol /= 2
-        for i, again in zip(wrong, _fitted([rings[i] for i in wrong], tol)):
+        for i, again in zip(todo, _fitted([rings[i] for i in todo], tol)):
             out[i] = again
     return out
-
-
-def _area_off(contour: np.ndarray, ring: np.ndarray) -> bool:
-    """Whether ``contour (3S, 2)``'s area is more than ``KEEP_AREA`` of ``ring (N, 2)``'s away from it."""
-    want = ring_area(ring)
-    return abs(ring_area(flatten_ring(contour, 8)) - want) > KEEP_AREA * abs(want)
 
 
 def _fitted(rings: list[np.ndarray], tol: float) -> list[tuple[np.ndarray, np.ndarray]]:
